@@ -1,0 +1,75 @@
+"""On-demand cache of virtual-lab campaigns, outside the source tree.
+
+A campaign is about 80 MB of UFF files, so it is generated when first asked
+for and kept under ``$RAILMODAL_CACHE`` (default ``~/.cache/railmodal``) in a
+folder named after the scenario and a hash of the campaign configuration and
+of the virtual lab's source code: changing either gives a fresh campaign.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import os
+import shutil
+import tempfile
+from dataclasses import asdict
+from pathlib import Path
+
+from .campaign import CampaignConfig, plan_campaign, write_campaign
+
+__all__ = ["cache_root", "campaign_dir"]
+
+log = logging.getLogger(__name__)
+
+
+def cache_root() -> Path:
+    """The cache folder: ``$RAILMODAL_CACHE`` or ``~/.cache/railmodal``."""
+    return Path(os.environ.get("RAILMODAL_CACHE", Path.home() / ".cache" / "railmodal"))
+
+
+def _source_hash() -> str:
+    h = hashlib.sha256()
+    for f in sorted(Path(__file__).parent.glob("*.py")):
+        h.update(f.name.encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()[:12]
+
+
+def campaign_dir(scenario: str = "control", **config) -> Path:
+    """Folder holding the campaign of ``scenario``, generating it first if needed.
+
+    Parameters
+    ----------
+    scenario : str
+    **config
+        Further :class:`~lab_data.campaign.CampaignConfig` fields.
+
+    Returns
+    -------
+    Path
+        A folder with ``fe_design.uff``, ``fe_design.pch``, ``<setup>.uff``,
+        ``<setup>_channels.csv``, ``points.csv`` and ``truth.json``.
+    """
+    cfg = CampaignConfig(scenario=scenario, **config)
+    key = hashlib.sha256(json.dumps(asdict(cfg), sort_keys=True).encode()).hexdigest()[:12]
+    target = cache_root() / "lab" / f"{scenario}-{key}-{_source_hash()}"
+    if (target / "truth.json").exists():
+        return target
+    target.parent.mkdir(parents=True, exist_ok=True)
+    # write into a temporary sibling and rename, so a crash never leaves a half campaign behind
+    tmp = Path(tempfile.mkdtemp(prefix=f".{scenario}-", dir=target.parent))
+    try:
+        write_campaign(plan_campaign(cfg), tmp)
+        try:
+            tmp.rename(target)
+        except OSError:
+            # another process finished the same campaign first
+            if not (target / "truth.json").exists():
+                raise
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp, ignore_errors=True)
+    log.info("campaign %s cached in %s", scenario, target)
+    return target

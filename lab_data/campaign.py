@@ -1,0 +1,409 @@
+"""A virtual impact-test campaign: plan it from the truth, then write the files a lab writes.
+
+:func:`plan_campaign` solves the design and as-built models of a scenario,
+places the sensors of both setups, draws the hits (seeded) and decides the
+channel ranges; :func:`write_campaign` synthesises every hit and writes
+
+* ``fe_design.uff`` — design FE export: UFF 164 + 2411 + 2412 + 55 (6 DOF per
+  node, mass-normalised, rigid-body modes included, degenerate pairs in the
+  arbitrary basis an FE solver returns);
+* ``fe_design.pch`` — the same modes as a Nastran punch file;
+* ``<setup>.uff`` — binary UFF58 time histories (function type 1), one dataset
+  per channel per hit, hit number in the sequence-number field;
+* ``<setup>_channels.csv`` — the channel table;
+* ``points.csv`` — contact points and axlebox centres with their FE nodes;
+* ``truth.json`` — the truth manifest (only tests read it).
+
+The hits per setup (default 6): amplitudes 0.8–1.2 kN, half-sine widths
+0.35–0.9 ms (hammer tip), 0.1 s pre-trigger, 4 s records at 12.8 kHz. Hit 3
+is a double hit (the hammer bounces back 3–6 ms later at 30–50 %); hit 5 is
+struck hard enough to overload the accelerometer with the strongest
+response, whose range the engineer had set tighter than the others. Channel ranges follow
+an auto-range from the nominal hits (four times the largest peak, rounded up
+to the 1-2-5 series), except the overloaded channel's custom range of 1.05
+times its largest nominal peak; the ADC has 24 bits; accelerometers add 5e-3 m/s² RMS
+noise (a 100 mV/g ICP sensor and front end), the force sensor 0.05 N RMS.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from .fe_model import Beam, PointMass, Shell
+from .hammer import ModalTruth, Pulse, add_noise, quantise, synthesize_hit
+from .mode_labels import mix_clusters
+from .nastran_punch import write_punch_eigenvectors
+from .scenarios import Scenario, get_scenario
+from .sensors import SETUP_NAMES, Setup, channel_table, make_setup, point_rows, points_table
+from .truth import BAND_HZ, SetupView, SolvedModel, check_spectral_gap, design_modes, pair_with_design, setup_view, truth_modes
+from .uff_export import ElementRecord, TimeHistory, write_fe_uff, write_time_histories
+from .wheelset import WheelsetParameters
+
+__all__ = ["CampaignConfig", "HitPlan", "CampaignPlan", "plan_campaign", "write_campaign", "simulate", "export_elements"]
+
+log = logging.getLogger(__name__)
+
+OBSERVABLE_PEAK_RATIO = 0.02
+ACC_NOISE_RMS = 5e-3
+FORCE_NOISE_RMS = 0.05
+FORCE_RANGE = 10000.0  # a large impact hammer for a 1.2 t wheelset (about 22 kN span)
+MANIFEST_FORMAT = "railmodal-virtual-lab-truth"
+MANIFEST_VERSION = 1
+
+
+@dataclass(frozen=True)
+class CampaignConfig:
+    """Everything that defines a campaign (and its cache key)."""
+
+    scenario: str = "control"
+    fe_max_hz: float = 500.0
+    fs: float = 12800.0
+    duration: float = 4.0
+    pretrigger: float = 0.1
+    n_hits: int = 6
+    double_hit: int = 3
+    overload_hit: int = 5
+    seed: int = 1863
+    oversample: int = 4
+
+    def __post_init__(self) -> None:
+        get_scenario(self.scenario)
+        if self.n_hits < 5:
+            raise ValueError(f"n_hits must be >= 5, got {self.n_hits}")
+        for name in ("double_hit", "overload_hit"):
+            h = getattr(self, name)
+            if not 1 <= h <= self.n_hits:
+                raise ValueError(f"{name} must be a hit number in 1..{self.n_hits}, got {h}")
+        if self.double_hit == self.overload_hit:
+            raise ValueError("double_hit and overload_hit must be different hits")
+        if self.duration < 4.0:
+            raise ValueError(f"duration must be >= 4 s (thesis records), got {self.duration}")
+        if self.fe_max_hz <= BAND_HZ[1] * 0.5:
+            raise ValueError(f"fe_max_hz must cover the analysis band, got {self.fe_max_hz}")
+
+
+@dataclass(frozen=True)
+class HitPlan:
+    hit: int
+    pulses: tuple[Pulse, ...]
+    double: bool
+    overload: bool
+
+
+@dataclass(frozen=True)
+class CampaignPlan:
+    """The truth and the test plan of a campaign, before any signal is synthesised."""
+
+    config: CampaignConfig
+    scenario: Scenario
+    params: WheelsetParameters
+    design: SolvedModel
+    export_freqs_hz: np.ndarray
+    export_shapes: np.ndarray
+    truth: SolvedModel
+    setups: dict[str, Setup]
+    views: dict[str, SetupView]
+    modal: dict[str, ModalTruth]
+    hits: dict[str, tuple[HitPlan, ...]]
+    pairs: list
+    points: list = field(default_factory=list)
+
+
+def _draw_hits(config: CampaignConfig, rng: np.random.Generator) -> tuple[HitPlan, ...]:
+    hits = []
+    for h in range(1, config.n_hits + 1):
+        width = rng.uniform(0.35e-3, 0.9e-3)
+        amp = rng.uniform(800.0, 1200.0)
+        t0 = config.pretrigger + rng.uniform(0.0, 2e-3)
+        pulses = [Pulse(t0, width, amp)]
+        if h == config.double_hit:
+            pulses.append(Pulse(t0 + width + rng.uniform(3e-3, 6e-3), width, amp * rng.uniform(0.3, 0.5)))
+        hits.append(HitPlan(h, tuple(pulses), h == config.double_hit, h == config.overload_hit))
+    return tuple(hits)
+
+
+def plan_campaign(config: CampaignConfig = CampaignConfig(), params: WheelsetParameters = WheelsetParameters()) -> CampaignPlan:
+    """Solve the design and truth models of a scenario and plan both setups' hits.
+
+    Raises
+    ------
+    ValueError
+        If the export frequency falls next to a mode (see
+        :func:`lab_data.truth.check_spectral_gap`).
+    """
+    scenario = get_scenario(config.scenario)
+    log.info("solving the design FE model up to %.0f Hz", config.fe_max_hz)
+    design_all = design_modes(params, config.fe_max_hz * 1.1)
+    check_spectral_gap(design_all.modes.freqs_hz, config.fe_max_hz, "design FE export")
+    keep = design_all.modes.freqs_hz <= config.fe_max_hz
+    design = _truncate(design_all, keep)
+
+    f_truth = scenario.truth_max_hz or config.fe_max_hz
+    log.info("solving the as-built truth (%s) up to %.0f Hz", scenario.name, f_truth)
+    truth_all = truth_modes(scenario, params, f_truth * 1.1, design)
+    if scenario.truth_max_hz is None:
+        check_spectral_gap(truth_all.modes.freqs_hz, f_truth, f"truth of scenario {scenario.name!r}")
+    truth = _truncate(truth_all, truth_all.modes.freqs_hz <= f_truth)
+    pairs = pair_with_design(truth, design)
+
+    rng = np.random.default_rng(config.seed)
+    exported = mix_clusters(design.model, design.system, design.modes, rng)
+    points = point_rows(design.model, params)
+    setups, views, modal, hits = {}, {}, {}, {}
+    for name in SETUP_NAMES:
+        setup = make_setup(name, design.model, params)
+        view = setup_view(truth, setup, points)
+        setups[name] = setup
+        views[name] = view
+        modal[name] = ModalTruth(view.freqs_hz, view.zeta, view.input_shape, view.output_shapes)
+        hits[name] = _draw_hits(config, np.random.default_rng([config.seed, SETUP_NAMES.index(name)]))
+    return CampaignPlan(
+        config, scenario, params, design, exported.freqs_hz, exported.shapes, truth, setups, views, modal, hits,
+        pairs, points,
+    )
+
+
+def _truncate(s: SolvedModel, keep: np.ndarray) -> SolvedModel:
+    from .fe_model import Modes
+
+    m = s.modes
+    modes = Modes(m.freqs_hz[keep], m.shapes[keep], m.reduced[:, keep])
+    return SolvedModel(s.model, s.system, modes, tuple(l for l, k in zip(s.labels, keep) if k), s.zeta[keep])
+
+
+def _nice_ceil(x: np.ndarray) -> np.ndarray:
+    """Round up to the 1-2-5 series (an input-range list of a front end)."""
+    x = np.asarray(x, float)
+    decade = 10.0 ** np.floor(np.log10(x))
+    out = np.full_like(x, np.inf)
+    for m in (1.0, 2.0, 5.0, 10.0):
+        cand = m * decade
+        out = np.where((cand >= x * (1 - 1e-12)) & (cand < out), cand, out)
+    return out
+
+
+def _direction_code(d: tuple[float, float, float]) -> int:
+    d = np.asarray(d)
+    k = int(np.argmax(np.abs(d)))
+    if abs(abs(d[k]) - 1.0) < 1e-9:
+        return int(np.sign(d[k])) * (k + 1)
+    return 0
+
+
+def export_elements(plan_or_model) -> list[ElementRecord]:
+    """UFF 2412 records of the design model: beams (21), shells (94), lumped masses (161), display skins (94).
+
+    Physical property numbers: 1 axle beams, 2 wheel-rim beams, 3 wheel webs,
+    4 brake discs, 5 lumped masses, 99 display skins (no stiffness, no mass:
+    they only give the mesh its wheelset look).
+    """
+    model = plan_or_model.design.model if hasattr(plan_or_model, "design") else plan_or_model
+    records = []
+    eid = 1
+    for e in model.elements:
+        if isinstance(e, Beam):
+            prop = 2 if "rim" in e.group else 1
+            records.append(ElementRecord(eid, 21, prop, 1, 7, tuple(int(n) for n in e.nodes)))
+        elif isinstance(e, Shell):
+            prop = 4 if e.group.startswith("disc") else 3
+            records.append(ElementRecord(eid, 94, prop, 1, 8, tuple(int(n) for n in e.nodes)))
+        elif isinstance(e, PointMass):
+            records.append(ElementRecord(eid, 161, 5, 1, 2, (int(e.node),)))
+        else:
+            continue
+        eid += 1
+    for s in model.skins:
+        records.append(ElementRecord(eid, 94, 99, 1, 11, tuple(int(n) for n in s.nodes)))
+        eid += 1
+    return records
+
+
+def _synthesise(plan: CampaignPlan, setup_name: str, hit: HitPlan) -> tuple[np.ndarray, np.ndarray]:
+    c = plan.config
+    _, force, acc = synthesize_hit(plan.modal[setup_name], hit.pulses, fs=c.fs, duration=c.duration,
+                                   oversample=c.oversample)
+    return force, acc
+
+
+def _ranges_and_overload(plan: CampaignPlan, setup_name: str, clean: dict[int, tuple]) -> tuple[np.ndarray, int, float]:
+    """Channel ranges from the nominal hits, the overloaded channel and the overload hit's amplitude factor."""
+    c = plan.config
+    nominal = [h for h in plan.hits[setup_name] if not h.overload]
+    peaks = np.max([np.max(np.abs(clean[h.hit][1]), axis=1) for h in nominal], axis=0)
+    ranges = _nice_ceil(4.0 * peaks)
+    hot = int(np.argmax(peaks))
+    # the engineer typed a tight custom range for the most responsive channel
+    ranges[hot] = float(np.format_float_positional(1.05 * peaks[hot], precision=3, unique=False, fractional=False))
+    over = next(h for h in plan.hits[setup_name] if h.overload)
+    unit_peak = np.max(np.abs(clean[over.hit][1]), axis=1)
+    factor = 1.3 * ranges[hot] / unit_peak[hot]  # scales the drawn amplitude so the hot channel overloads by 30 %
+    others = np.delete(factor * unit_peak / ranges, hot)
+    if np.any(others >= 0.9) or factor * np.max(np.abs(clean[over.hit][0])) >= 0.9 * FORCE_RANGE:
+        raise RuntimeError(
+            f"setup {setup_name}: the overload hit would clip more than one channel "
+            f"(worst other channel at {others.max():.2f} of its range)"
+        )
+    return ranges, hot, factor
+
+
+def write_campaign(
+    plan: CampaignPlan, out_dir: str | Path, *, progress: Callable[[str], None] | None = None
+) -> dict[str, Path]:
+    """Synthesise every hit and write the campaign's files into ``out_dir``.
+
+    Returns
+    -------
+    dict of str to Path
+        ``fe_uff``, ``fe_punch``, ``points``, ``truth``, and per setup
+        ``<setup>_uff`` and ``<setup>_channels``.
+    """
+    say = progress or (lambda msg: log.info("%s", msg))
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    c = plan.config
+    files: dict[str, Path] = {}
+    design = plan.design
+
+    say(f"writing the design FE export ({len(plan.export_freqs_hz)} modes up to {c.fe_max_hz:g} Hz)")
+    files["fe_uff"] = write_fe_uff(
+        out / "fe_design.uff",
+        design.model.node_ids,
+        design.model.xyz,
+        export_elements(design.model),
+        plan.export_freqs_hz,
+        plan.export_shapes,
+        model_name="railmodal design wheelset",
+        description="Meneghino trailer wheelset, design FE, free-free, SI units (m, kg, s)",
+    )
+    files["fe_punch"] = write_punch_eigenvectors(
+        out / "fe_design.pch", design.model.node_ids, plan.export_freqs_hz, plan.export_shapes,
+        title="RAILMODAL DESIGN WHEELSET FREE-FREE",
+    )
+    points_table(design.model, plan.params).to_csv(out / "points.csv", index=False)
+    files["points"] = out / "points.csv"
+
+    manifest_setups = {}
+    for name in SETUP_NAMES:
+        setup = plan.setups[name]
+        hits = plan.hits[name]
+        say(f"setup {name}: synthesising {len(hits)} hits ({len(setup.accelerometers)} accelerometers + force)")
+        clean = {h.hit: _synthesise(plan, name, h) for h in hits}
+        ranges, hot, factor = _ranges_and_overload(plan, name, clean)
+        rng = np.random.default_rng([c.seed, 100 + SETUP_NAMES.index(name)])
+        histories = []
+        hit_records = []
+        for h in hits:
+            force, acc = clean[h.hit]
+            pulses = h.pulses
+            if h.overload:
+                force, acc = force * factor, acc * factor
+                pulses = tuple(Pulse(p.t0, p.width, p.amplitude * factor) for p in pulses)
+            force = add_noise(force, FORCE_NOISE_RMS, rng)
+            acc = add_noise(acc, ACC_NOISE_RMS, rng)
+            force_q, force_clip = quantise(force, FORCE_RANGE)
+            acc_q, acc_clip = quantise(acc, ranges)
+            clipped = [setup.accelerometers[j].node for j in np.flatnonzero(acc_clip.any(axis=1))]
+            if force_clip.any():
+                raise RuntimeError(f"setup {name} hit {h.hit}: the force channel clipped")
+            if (h.overload and clipped != [setup.accelerometers[hot].node]) or (not h.overload and clipped):
+                raise RuntimeError(f"setup {name} hit {h.hit}: unexpected clipped channels {clipped}")
+            dt = 1.0 / c.fs
+            f_dir = _direction_code(setup.force.direction)
+            histories.append(TimeHistory(h.hit, setup.force.node, f_dir, "force", "N", setup.force.name, dt, force_q,
+                                         setup.force.node, f_dir))
+            for j, s in enumerate(setup.accelerometers):
+                histories.append(TimeHistory(h.hit, s.node, _direction_code(s.direction), "acceleration", "m/s^2",
+                                             s.name, dt, acc_q[j], setup.force.node, f_dir))
+            hit_records.append(
+                {
+                    "hit": h.hit,
+                    "pulses": [asdict(p) for p in pulses],
+                    "double": h.double,
+                    "overload": h.overload,
+                    "clipped_nodes": clipped,
+                    "clipped_samples": int(acc_clip.sum()),
+                }
+            )
+        say(f"setup {name}: writing {len(histories)} UFF58 datasets")
+        files[f"{name}_uff"] = write_time_histories(out / f"{name}.uff", histories, binary=True)
+        table = channel_table(setup)
+        table.to_csv(out / f"{name}_channels.csv", index=False)
+        files[f"{name}_channels"] = out / f"{name}_channels.csv"
+        manifest_setups[name] = _setup_manifest(plan, name, ranges, hit_records)
+
+    manifest = {
+        "format": MANIFEST_FORMAT,
+        "version": MANIFEST_VERSION,
+        "config": asdict(c),
+        "scenario": plan.scenario.parameters(),
+        "band_hz": list(BAND_HZ),
+        "observable_peak_ratio": OBSERVABLE_PEAK_RATIO,
+        "noise_rms": {"acceleration_m_per_s2": ACC_NOISE_RMS, "force_N": FORCE_NOISE_RMS},
+        "adc_bits": 24,
+        "force_range_N": FORCE_RANGE,
+        "design_modes": [
+            {"mode": i + 1, "f_hz": float(f), "description": lab.description, "family": lab.family}
+            for i, (f, lab) in enumerate(zip(plan.export_freqs_hz, plan.design.labels))
+        ],
+        "files": {k: v.name for k, v in files.items()},
+        "setups": manifest_setups,
+    }
+    (out / "truth.json").write_text(json.dumps(manifest, indent=1))
+    files["truth"] = out / "truth.json"
+    say(f"campaign {plan.scenario.name!r} written to {out}")
+    return files
+
+
+def _setup_manifest(plan: CampaignPlan, name: str, ranges: np.ndarray, hit_records: list) -> dict:
+    setup = plan.setups[name]
+    view = plan.views[name]
+    modes = []
+    for i, f in enumerate(view.freqs_hz):
+        lab = view.labels[i]
+        partner, mac = plan.pairs[i]
+        in_band = BAND_HZ[0] <= f <= BAND_HZ[1]
+        modes.append(
+            {
+                "id": i,
+                "f_hz": float(f),
+                "zeta": float(view.zeta[i]),
+                "description": lab.description,
+                "family": lab.family,
+                "order": lab.order,
+                "plane": lab.plane,
+                "nodal_diameters": lab.nodal_diameters,
+                "fe_partner": [k + 1 for k in partner],
+                "fe_mac": mac,
+                "peak_ratio": float(view.peak_ratio[i]),
+                "observable": bool(in_band and view.peak_ratio[i] >= OBSERVABLE_PEAK_RATIO),
+                "input_shape": float(view.input_shape[i]),
+                "shapes": view.output_shapes[:, i].tolist(),
+                "points": {
+                    pname: view.point_shapes[3 * k : 3 * k + 3, i].tolist() for k, (pname, _, _) in enumerate(plan.points)
+                },
+            }
+        )
+    return {
+        "uff": f"{name}.uff",
+        "channels": f"{name}_channels.csv",
+        "force": {"node": setup.force.node, "fe_node": setup.force.fe_node, "position": setup.force.position,
+                  "direction": setup.force.direction},
+        "accelerometer_nodes": [s.node for s in setup.accelerometers],
+        "ranges_m_per_s2": {str(s.node): float(r) for s, r in zip(setup.accelerometers, ranges)},
+        "hits": hit_records,
+        "double_hits": [h["hit"] for h in hit_records if h["double"]],
+        "clipped": [{"hit": h["hit"], "node": n} for h in hit_records for n in h["clipped_nodes"]],
+        "modes": modes,
+    }
+
+
+def simulate(scenario: str, out_dir: str | Path, *, progress: Callable[[str], None] | None = None, **config) -> dict[str, Path]:
+    """Plan and write a campaign of ``scenario`` into ``out_dir`` (see :class:`CampaignConfig` for options)."""
+    plan = plan_campaign(CampaignConfig(scenario=scenario, **config))
+    return write_campaign(plan, out_dir, progress=progress)

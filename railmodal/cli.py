@@ -1,0 +1,163 @@
+"""The ``railmodal`` command line.
+
+``railmodal demo``                      simulate a virtual-lab campaign and say what was written
+``railmodal lab simulate``              write a campaign of one scenario (``--scenario NAME --out DIR``)
+``railmodal lab scenarios``             list the virtual-lab scenarios
+``railmodal lab render``                pictures of the design wheelset and its modes
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+import time
+from pathlib import Path
+
+__all__ = ["main"]
+
+
+def _scenario_names() -> list[str]:
+    from lab_data.scenarios import SCENARIOS
+
+    return sorted(SCENARIOS)
+
+
+def _setup_logging(verbosity: int) -> None:
+    level = logging.WARNING if verbosity < 0 else logging.INFO if verbosity == 0 else logging.DEBUG
+    logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(message)s", datefmt="%H:%M:%S",
+                        stream=sys.stderr)
+
+
+def _progress(msg: str) -> None:
+    print(f"  … {msg}", file=sys.stderr, flush=True)
+
+
+def _describe_campaign(files: dict[str, Path]) -> None:
+    import json
+
+    print("files written:")
+    for key, path in files.items():
+        size = path.stat().st_size
+        print(f"  {key:20s} {path}  ({size / 1e6:.2f} MB)")
+    manifest = json.loads(files["truth"].read_text())
+    print(f"scenario: {manifest['scenario']['name']} — {manifest['scenario']['description']}")
+    for name, setup in manifest["setups"].items():
+        seen = [m for m in setup["modes"] if m["observable"]]
+        print(f"setup {name}: {len(setup['hits'])} hits, double hit(s) {setup['double_hits']}, "
+              f"clipped {[(c['hit'], c['node']) for c in setup['clipped']]}; "
+              f"{len(seen)} truth modes observable in {manifest['band_hz'][0]:g}–{manifest['band_hz'][1]:g} Hz:")
+        for m in seen:
+            print(f"    {m['f_hz']:8.2f} Hz  zeta {100 * m['zeta']:.3f} %  {m['description']}")
+
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    from lab_data.campaign import simulate
+
+    t0 = time.perf_counter()
+    files = simulate(args.scenario, args.out, progress=None if args.quiet else _progress, fe_max_hz=args.fe_max_hz,
+                     seed=args.seed, n_hits=args.hits)
+    _describe_campaign(files)
+    print(f"done in {time.perf_counter() - t0:.1f} s")
+    return 0
+
+
+def _cmd_scenarios(args: argparse.Namespace) -> int:
+    from lab_data.scenarios import SCENARIOS
+
+    for name in sorted(SCENARIOS):
+        print(f"{name:12s} {SCENARIOS[name].description}")
+    return 0
+
+
+def _render(out: Path, n_modes: int, quiet: bool) -> list[Path]:
+    from lab_data.plot import render_wheelset
+    from lab_data.truth import design_modes
+    from lab_data.wheelset import WheelsetParameters
+
+    design = design_modes(WheelsetParameters(), 500.0)
+    paths = [render_wheelset(design.model, out / "wheelset.png", title="railmodal design wheelset")]
+    shown = 0
+    seen = set()
+    for i, (f, lab) in enumerate(zip(design.modes.freqs_hz, design.labels)):
+        # one picture per mode, not per member of a degenerate pair
+        if lab.family == "rigid" or (lab.family, lab.order) in seen:
+            continue
+        if shown >= n_modes:
+            break
+        seen.add((lab.family, lab.order))
+        name = f"mode_{shown + 1:02d}_{f:.0f}Hz.png"
+        paths.append(render_wheelset(design.model, out / name, shape=design.modes.shapes[i],
+                                     title=f"{lab.description}  {f:.1f} Hz"))
+        shown += 1
+        if not quiet:
+            _progress(f"rendered {name}")
+    return paths
+
+
+def _cmd_render(args: argparse.Namespace) -> int:
+    paths = _render(Path(args.out), args.modes, args.quiet)
+    for p in paths:
+        print(p)
+    return 0
+
+
+def _cmd_demo(args: argparse.Namespace) -> int:
+    from lab_data.campaign import simulate
+
+    out = Path(args.out)
+    print(f"railmodal demo: simulating a virtual-lab impact-test campaign (scenario {args.scenario!r}) into {out}")
+    t0 = time.perf_counter()
+    files = simulate(args.scenario, out, progress=None if args.quiet else _progress)
+    _describe_campaign(files)
+    pictures = _render(out / "pictures", 4, args.quiet)
+    print("pictures:")
+    for p in pictures:
+        print(f"  {p}")
+    print(f"done in {time.perf_counter() - t0:.1f} s")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="railmodal", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
+    parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    demo = sub.add_parser("demo", help="simulate a virtual-lab campaign and report what was written")
+    demo.add_argument("--out", default="railmodal-demo", help="output folder (default: ./railmodal-demo)")
+    demo.add_argument("--scenario", default="control", choices=_scenario_names())
+    demo.set_defaults(func=_cmd_demo)
+
+    lab = sub.add_parser("lab", help="virtual wheelset lab")
+    lab_sub = lab.add_subparsers(dest="lab_command", required=True)
+    sim = lab_sub.add_parser("simulate", help="write the files of one impact-test campaign")
+    sim.add_argument("--scenario", required=True, choices=_scenario_names())
+    sim.add_argument("--out", required=True, help="output folder")
+    sim.add_argument("--fe-max-hz", type=float, default=500.0, help="highest design FE mode exported (default 500)")
+    sim.add_argument("--seed", type=int, default=1863, help="random seed of hits and noise")
+    sim.add_argument("--hits", type=int, default=6, help="hits per setup (>= 5)")
+    sim.set_defaults(func=_cmd_simulate)
+    sc = lab_sub.add_parser("scenarios", help="list the scenarios")
+    sc.set_defaults(func=_cmd_scenarios)
+    rd = lab_sub.add_parser("render", help="PNG pictures of the design wheelset and its first modes")
+    rd.add_argument("--out", required=True)
+    rd.add_argument("--modes", type=int, default=6)
+    rd.set_defaults(func=_cmd_render)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    _setup_logging(-1 if args.quiet else args.verbose - 1)
+    try:
+        return args.func(args)
+    except (ValueError, KeyError, OSError, RuntimeError) as exc:
+        print(f"railmodal: error: {exc}", file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

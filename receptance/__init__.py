@@ -1,0 +1,10 @@
+"""receptance — hybrid modal model, track and contact receptances, measurement transfer functions.
+
+Role in the data flow (``shared/DESIGN.md``): combines FE shapes from
+:mod:`fem_import` with the test frequencies and damping from :mod:`ema`
+(thesis §2.3), adds physical effects (residuals, primary suspension,
+bearings, ...) as structural modifications, computes the Timoshenko track
+receptance (§2.4) and the Hertzian contact stiffness, and forms the
+half-wheelset, full vertical and full vertical+lateral transfer functions
+(eqs. 2.6, 2.11, 2.22) that :mod:`estimator` inverts.
+"""

@@ -1,0 +1,71 @@
+"""Pictures of the wheelset and the command line."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from lab_data.plot import render_wheelset, wheelset_polydata
+from lab_data.truth import design_modes
+from lab_data.wheelset import WheelsetParameters
+from railmodal.cli import main
+
+
+@pytest.fixture(scope="module")
+def design():
+    return design_modes(WheelsetParameters(), 500.0)
+
+
+def test_mesh_looks_like_a_wheelset(design):
+    mesh = wheelset_polydata(design.model)
+    x0, x1, y0, y1, z0, z1 = mesh.bounds
+    p = WheelsetParameters()
+    # the wheels span the rim diameter; the axleboxes close the journals' ends
+    assert z1 - z0 == pytest.approx(2 * p.rim_radius, rel=1e-6)
+    assert y1 - y0 == pytest.approx(2 * (p.axlebox_y + p.axlebox_half_size[1]), rel=1e-6)
+    assert p.axlebox_y + p.axlebox_half_size[1] > p.axle_half_length
+    assert mesh.n_cells > 1000
+    assert mesh.n_lines >= 2 * p.n_theta  # rims and axle as beams
+
+
+def test_render_writes_a_picture_with_content(tmp_path, design):
+    from PIL import Image
+
+    i = next(k for k, lab in enumerate(design.labels) if lab.family == "torsion")
+    path = render_wheelset(design.model, tmp_path / "mode.png", shape=design.modes.shapes[i], title="torsion")
+    img = np.asarray(Image.open(path).convert("L"), float)
+    assert img.shape == (800, 1200)
+    # a white background with a sizeable non-white object in it
+    assert 0.05 < np.mean(img < 250) < 0.8
+
+
+def test_shape_of_wrong_size_is_refused(design):
+    with pytest.raises(ValueError, match="shape must have shape"):
+        wheelset_polydata(design.model, np.zeros((3, 6)), 1.0)
+
+
+def test_cli_simulate_writes_the_campaign(tmp_path, capsys):
+    assert main(["-q", "lab", "simulate", "--scenario", "rig", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "flexural_uff" in out and "observable" in out
+    manifest = json.loads((tmp_path / "truth.json").read_text())
+    assert manifest["scenario"]["name"] == "rig"
+
+
+def test_cli_rejects_unknown_scenario(tmp_path):
+    proc = subprocess.run(
+        [sys.executable, "-m", "railmodal.cli", "lab", "simulate", "--scenario", "nope", "--out", str(tmp_path)],
+        capture_output=True, text=True,
+    )
+    assert proc.returncode == 2
+    assert "invalid choice: 'nope'" in proc.stderr
+
+
+def test_cli_reports_errors_without_a_traceback(tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    assert main(["-q", "lab", "simulate", "--scenario", "control", "--out", str(blocker / "sub")]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("railmodal: error:") and "Traceback" not in err
