@@ -36,22 +36,14 @@ from pathlib import Path
 
 import numpy as np
 
+from .validation import check_finite_array, check_labels, check_text
+
 __all__ = ["write_punch_eigenvectors"]
 
 _MAX_GRID_ID = 99_999_999     # Nastran grid ids: 0 < id < 100,000,000
 _MAX_COUNTER = 99_999_999     # I8 line counter
 _TINY = 1e-99
 _HUGE = 1e99
-
-
-def _check_text(name: str, value, max_len: int) -> str:
-    if not isinstance(value, str):
-        raise ValueError(f"{name} must be a str, got {type(value).__name__} {value!r}")
-    if len(value) > max_len:
-        raise ValueError(f"{name} must have at most {max_len} characters, got {len(value)}: {value!r}")
-    if not (value.isascii() and value.isprintable()):
-        raise ValueError(f"{name} must be printable ASCII without line breaks, got {value!r}")
-    return value
 
 
 def _card(text: str, counter: int) -> str:
@@ -94,39 +86,14 @@ def write_punch_eigenvectors(path, node_ids, freqs_hz, shapes, *, title="") -> P
         If an argument has the wrong shape, type or value; the message names
         the argument and what was received.
     """
-    ids = np.asarray(node_ids)
-    if ids.ndim != 1 or ids.size == 0:
-        raise ValueError(f"node_ids must be a non-empty 1-D sequence of integers, got shape {ids.shape}")
-    if not np.issubdtype(ids.dtype, np.integer):
-        raise ValueError(f"node_ids must contain integers, got dtype {ids.dtype}")
-    ids = ids.astype(np.int64)
-    if ids.min() < 1 or ids.max() > _MAX_GRID_ID:
-        raise ValueError(f"node_ids must lie in [1, {_MAX_GRID_ID}], got min {ids.min()} and max {ids.max()}")
-    uniq, counts = np.unique(ids, return_counts=True)
-    if np.any(counts > 1):
-        raise ValueError(f"node_ids must be unique, got duplicates {uniq[counts > 1][:10].tolist()}")
-
-    try:
-        freqs = np.asarray(freqs_hz, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"freqs_hz must be a real numeric array, got {type(freqs_hz).__name__}") from exc
-    if freqs.ndim != 1:
-        raise ValueError(f"freqs_hz must have shape (n_modes,), got {freqs.shape}")
-    if not np.all(np.isfinite(freqs)) or np.any(freqs < 0):
-        raise ValueError(f"freqs_hz must be finite and >= 0, got {freqs[~(freqs >= 0)][:5].tolist()}")
+    ids = check_labels("node_ids", node_ids, hi=_MAX_GRID_ID)
+    freqs = check_finite_array("freqs_hz", freqs_hz, (None,))
+    if np.any(freqs < 0):
+        raise ValueError(f"freqs_hz must be >= 0, got {freqs[freqs < 0][:5].tolist()}")
     if freqs.size > 999_999:
         raise ValueError(f"freqs_hz: at most 999999 modes fit the MODE field (I6), got {freqs.size}")
 
-    try:
-        vecs = np.asarray(shapes, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"shapes must be a real numeric array, got {type(shapes).__name__}") from exc
-    if vecs.shape != (freqs.size, ids.size, 6):
-        raise ValueError(f"shapes must have shape (n_modes, n_nodes, 6) = ({freqs.size}, {ids.size}, 6), "
-                         f"got {vecs.shape}")
-    if not np.all(np.isfinite(vecs)):
-        bad = np.argwhere(~np.isfinite(vecs))[0].tolist()
-        raise ValueError(f"shapes must be finite, got {vecs[tuple(bad)]} at index {bad}")
+    vecs = check_finite_array("shapes", shapes, (freqs.size, ids.size, 6))
     if np.any(np.abs(vecs) >= _HUGE):
         bad = np.argwhere(np.abs(vecs) >= _HUGE)[0].tolist()
         raise ValueError(f"shapes must have magnitudes below {_HUGE:g}, got {vecs[tuple(bad)]} at index {bad}")
@@ -134,7 +101,7 @@ def write_punch_eigenvectors(path, node_ids, freqs_hz, shapes, *, title="") -> P
     eigenvalues = (2.0 * math.pi * freqs) ** 2
     if np.any(eigenvalues >= _HUGE):
         raise ValueError(f"freqs_hz too large for the eigenvalue field, got max {freqs.max()!r}")
-    _check_text("title", title, 60)
+    check_text("title", title, max_len=60, allow_empty=True)
 
     n_lines = freqs.size * (7 + 2 * ids.size)
     if n_lines > _MAX_COUNTER:

@@ -181,8 +181,6 @@ class TunedAbsorber:
     name: str = "absorber"
 
     def apply(self, model: FEModel) -> FEModel:
-        from .fe_model import FEModel as _FE  # noqa: F401  (type only)
-
         disc = model.nodes_of("disc_L")
         xyz = np.array([model.coords(n) for n in disc])
         top = disc[np.argmax(xyz[:, 2])]

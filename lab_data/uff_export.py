@@ -105,6 +105,15 @@ from pathlib import Path
 
 import numpy as np
 
+from .validation import (
+    MAX_I10,
+    check_finite_array as _check_finite_array,
+    check_int as _check_int,
+    check_labels as _check_labels,
+    check_text as _check_text,
+    is_int as _is_int,
+)
+
 __all__ = [
     "ElementRecord",
     "TimeHistory",
@@ -127,7 +136,7 @@ FE_DESCRIPTORS: dict[int, tuple[str, int, int | None]] = {
 # dataset 2412; this is also the set pyuff's reader treats as beams.
 _BEAM_DESCRIPTORS = frozenset({11, 21, 22, 23, 24})
 
-_MAX_I10 = 2**31 - 1          # largest label that fits an I10 field and int32
+_MAX_I10 = MAX_I10
 _MAX_I5 = 99_999              # largest value of an I5 field
 _E13_MAX = 1e99               # |x| >= this would need a 3-digit exponent
 _E13_TINY = 1e-99             # |x| <  this would need a 3-digit exponent
@@ -221,62 +230,6 @@ class TimeHistory:
     data: np.ndarray
     ref_node: int = 0
     ref_direction: int = 0
-
-
-# --------------------------------------------------------------------------
-# validation helpers
-# --------------------------------------------------------------------------
-def _is_int(value) -> bool:
-    return isinstance(value, numbers.Integral) and not isinstance(value, (bool, np.bool_))
-
-
-def _check_int(name: str, value, lo: int, hi: int) -> int:
-    if not _is_int(value) or not lo <= int(value) <= hi:
-        raise ValueError(f"{name} must be an integer in [{lo}, {hi}], got {value!r}")
-    return int(value)
-
-
-def _check_text(name: str, value, *, max_len: int, allow_empty: bool = False) -> str:
-    if not isinstance(value, str):
-        raise ValueError(f"{name} must be a str, got {type(value).__name__} {value!r}")
-    if not allow_empty and not value.strip():
-        raise ValueError(f"{name} must not be empty, got {value!r}")
-    if len(value) > max_len:
-        raise ValueError(f"{name} must have at most {max_len} characters, got {len(value)}: {value!r}")
-    if not (value.isascii() and value.isprintable()):
-        raise ValueError(f"{name} must be printable ASCII without line breaks, got {value!r}")
-    return value
-
-
-def _check_labels(name: str, value, hi: int = _MAX_I10) -> np.ndarray:
-    """Positive, unique integer labels as a 1-D int64 array."""
-    arr = np.asarray(value)
-    if arr.ndim != 1 or arr.size == 0:
-        raise ValueError(f"{name} must be a non-empty 1-D sequence of integers, got shape {arr.shape}")
-    if not np.issubdtype(arr.dtype, np.integer):
-        raise ValueError(f"{name} must contain integers, got dtype {arr.dtype}")
-    arr = arr.astype(np.int64)
-    if arr.min() < 1 or arr.max() > hi:
-        raise ValueError(f"{name} must lie in [1, {hi}], got min {arr.min()} and max {arr.max()}")
-    uniq, counts = np.unique(arr, return_counts=True)
-    if np.any(counts > 1):
-        raise ValueError(f"{name} must be unique, got duplicates {uniq[counts > 1][:10].tolist()}")
-    return arr
-
-
-def _check_finite_array(name: str, value, shape: tuple) -> np.ndarray:
-    """Finite float64 array of the given shape (None entries are free)."""
-    try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be a real numeric array, got {type(value).__name__}") from exc
-    if arr.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, arr.shape)):
-        want = "(" + ", ".join("*" if s is None else str(s) for s in shape) + ")"
-        raise ValueError(f"{name} must have shape {want}, got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        bad = np.argwhere(~np.isfinite(arr))[0].tolist()
-        raise ValueError(f"{name} must be finite, got {arr[tuple(bad)]} at index {bad}")
-    return arr
 
 
 def _e13_values(name: str, arr: np.ndarray) -> np.ndarray:

@@ -277,56 +277,49 @@ def build_wheelset(p: WheelsetParameters = WheelsetParameters(), *, name: str = 
         area = 0.5 * nt * np.sin(2 * np.pi / nt) * (radii[-1] ** 2 - radii[0] ** 2)
         return rho * thickness * area
 
+    def hub_and_plate(
+        group: str, y: float, radii: np.ndarray, thickness: float, material: Material, side: str, link: str,
+        seat_link: str, plate_mass: float, body_mass: float, hub_length: float,
+    ) -> list[list[int]]:
+        """A rigid hub (point mass: the body's mass not in its plate) carrying a shell plate, tied to the axle."""
+        base = NODE[group]
+        hub = node(base, 0.0, y, 0.0, group)
+        rings = annulus(base, y, radii, group, thickness, material)
+        links.append(RigidLink(hub, tuple(rings[0]), f"{link}_{side}"))
+        hub_skin(base, y, hub, rings[0], group)
+        links.append(RigidLink(axle_node_at(y), (hub,), f"{seat_link}_{side}"))
+        m_hub = body_mass - plate_mass
+        if m_hub <= 0:
+            raise ValueError(f"{group}: plate and rim ({plate_mass:.1f} kg) exceed the body mass {body_mass} kg")
+        # the hub is a thick ring from the seat to the plate's inner radius
+        ri, ro = 0.5 * p.axle_diameter(y), radii[0]
+        i_polar = m_hub * (ri**2 + ro**2) / 2
+        i_diam = m_hub * ((ri**2 + ro**2) / 4 + hub_length**2 / 12)
+        elements.append(PointMass(hub, m_hub, np.diag([i_diam, i_polar, i_diam]).tolist(), group))
+        return rings
+
     for side, sgn in (("L", -1.0), ("R", 1.0)):
-        # wheel
+        # wheel: web plate + rim ring of beams
         wname = f"wheel_{side}"
-        base = NODE[wname]
-        yw = sgn * p.wheel_y
-        hub = node(base, 0.0, yw, 0.0, wname)
         radii = np.linspace(p.hub_radius, p.rim_radius, p.web_rings + 1)
-        rings = annulus(base, yw, radii, wname, p.web_thickness, p.wheel_material)
-        links.append(RigidLink(hub, tuple(rings[0]), f"hub_{side}"))
-        hub_skin(base, yw, hub, rings[0], wname)
-        links.append(RigidLink(axle_node_at(yw), (hub,), f"joint_{side}"))
-        rim = rings[-1]
         rsec = rectangle_section(p.rim_radial, p.rim_axial)
-        rim_len = 2 * p.rim_radius * np.sin(np.pi / nt) * nt
+        m_rim = p.wheel_material.rho * rsec.area * 2 * p.rim_radius * np.sin(np.pi / nt) * nt
+        m_plate = m_rim + shell_mass(radii, p.web_thickness, p.wheel_material.rho)
+        rings = hub_and_plate(wname, sgn * p.wheel_y, radii, p.web_thickness, p.wheel_material, side, "hub", "joint",
+                              m_plate, p.wheel_mass, p.hub_length)
+        rim = rings[-1]
         for k in range(nt):
             k2 = (k + 1) % nt
             mid = 0.5 * (theta[k] + theta[k2] + (2 * np.pi if k2 == 0 else 0.0))
             elements.append(
                 Beam((rim[k], rim[k2]), rsec, p.wheel_material, (np.cos(mid), 0.0, np.sin(mid)), f"{wname}_rim")
             )
-        m_rim = p.wheel_material.rho * rsec.area * rim_len
-        m_web = shell_mass(radii, p.web_thickness, p.wheel_material.rho)
-        m_hub = p.wheel_mass - m_rim - m_web
-        if m_hub <= 0:
-            raise ValueError(f"rim ({m_rim:.1f} kg) and web ({m_web:.1f} kg) exceed the wheel mass {p.wheel_mass} kg")
-        ri = 0.5 * p.axle_diameter(yw)
-        ro = p.hub_radius
-        i_polar = m_hub * (ri**2 + ro**2) / 2
-        i_diam = m_hub * ((ri**2 + ro**2) / 4 + p.hub_length**2 / 12)
-        elements.append(PointMass(hub, m_hub, np.diag([i_diam, i_polar, i_diam]).tolist(), wname))
 
-        # brake disc
+        # brake disc: a thick annular plate on a short hub (0.12 m long)
         dname = f"disc_{side}"
-        base = NODE[dname]
-        yd = sgn * p.disc_y
-        dhub = node(base, 0.0, yd, 0.0, dname)
         dradii = np.linspace(p.disc_hub_radius, p.disc_outer_radius, p.disc_rings + 1)
-        drings = annulus(base, yd, dradii, dname, p.disc_thickness, p.disc_material)
-        links.append(RigidLink(dhub, tuple(drings[0]), f"disc_hub_{side}"))
-        hub_skin(base, yd, dhub, drings[0], dname)
-        links.append(RigidLink(axle_node_at(yd), (dhub,), f"disc_seat_{side}"))
-        m_dhub = p.disc_mass - shell_mass(dradii, p.disc_thickness, p.disc_material.rho)
-        if m_dhub <= 0:
-            raise ValueError(f"disc plate exceeds the disc mass {p.disc_mass} kg")
-        ri = 0.5 * p.axle_diameter(yd)
-        ro = p.disc_hub_radius
-        # the disc hub is a short thick ring (0.12 m long)
-        i_polar = m_dhub * (ri**2 + ro**2) / 2
-        i_diam = m_dhub * ((ri**2 + ro**2) / 4 + 0.12**2 / 12)
-        elements.append(PointMass(dhub, m_dhub, np.diag([i_diam, i_polar, i_diam]).tolist(), dname))
+        hub_and_plate(dname, sgn * p.disc_y, dradii, p.disc_thickness, p.disc_material, side, "disc_hub", "disc_seat",
+                      shell_mass(dradii, p.disc_thickness, p.disc_material.rho), p.disc_mass, 0.12)
 
         # axlebox
         bname = f"axlebox_{side}"
