@@ -6,4 +6,55 @@ registry into FE modes (nodes, elements, frequencies, mass-normalised shapes)
 and evaluates shapes at sensor points and directions. It is the first link:
 :mod:`ema` pairs against it and :mod:`receptance` builds the hybrid model from
 its shapes.
+
+Public API
+----------
+read(path, format=None, *, geometry=None, **kwargs) -> FEModes
+    Read modes through the format registry (format sniffed from content).
+formats() -> tuple of str
+    Registered format names; :func:`format_info`, :func:`register_format`,
+    :func:`unregister_format`, :func:`detect_format`, :func:`read_geometry`,
+    :func:`merge_geometry`.
+FEModes, Element, Geometry
+    The data types; :meth:`FEModes.at_points`, :meth:`FEModes.nearest_node`.
+shapes_at_channels(fe_modes, channels) -> ndarray
+    Shapes at the rows of a channel table.
+Exceptions: UnknownFormatError, FEReadError, FEGeometryError,
+MissingCoordinatesError, PointToleranceError (all ValueError).
+
+Pictures live in :mod:`fem_import.plot` (PyVista, imported on demand).
 """
+
+import logging as _logging
+
+from .errors import (
+    FEGeometryError,
+    FEImportError,
+    FEReadError,
+    MissingCoordinatesError,
+    PointToleranceError,
+    UnknownFormatError,
+)
+from .modes import DOF_NAMES, Element, FEModes, shapes_at_channels
+from .registry import (
+    FormatInfo,
+    Geometry,
+    detect_format,
+    format_info,
+    formats,
+    merge_geometry,
+    read,
+    read_geometry,
+    register_format,
+    unregister_format,
+)
+from . import uff as _uff, punch as _punch  # noqa: E402,F401  (register the built-in readers)
+
+_logging.getLogger("fem_import").addHandler(_logging.NullHandler())
+
+__all__ = [
+    "read", "formats", "format_info", "register_format", "unregister_format", "detect_format", "read_geometry", "merge_geometry",
+    "FEModes", "Element", "Geometry", "FormatInfo", "DOF_NAMES", "shapes_at_channels",
+    "FEImportError", "UnknownFormatError", "FEReadError", "FEGeometryError", "MissingCoordinatesError",
+    "PointToleranceError",
+]

@@ -1,12 +1,27 @@
-"""FE normal modes as imported from a file: the :class:`FEModes` type."""
+"""FE normal modes as imported from a file: the :class:`FEModes` type.
+
+Besides holding the modes, :class:`FEModes` evaluates them where a sensor or
+the hammer sits: :meth:`FEModes.at_points` gives the modal displacement of a
+point rigidly attached to an FE node along a measuring direction,
+``d . (u + theta x (p - x_node))``; :func:`shapes_at_channels` does the same
+for the rows of a channel table.  These are the mode-shape coefficients
+``c_jr`` (sensor j) and ``b_r`` (force point) of the modal accelerance
+``H_j = sum_r c_jr b_r s^2 / (s^2 + 2 zeta_r omega_r s + omega_r^2)`` that
+the hybrid model of :mod:`receptance` sums: the modal superposition
+``x = [Phi] q`` of thesis eq. 2.24 with mass-normalised shapes,
+``[Phi]^T [M] [Phi] = I`` (eq. 2.29), solved per frequency as in eq. 2.28.
+"""
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["FEModes", "Element", "DOF_NAMES"]
+from .errors import FEGeometryError, MissingCoordinatesError, PointToleranceError
+
+__all__ = ["FEModes", "Element", "DOF_NAMES", "shapes_at_channels"]
 
 DOF_NAMES = ("ux", "uy", "uz", "rx", "ry", "rz")
 
@@ -44,6 +59,14 @@ class FEModes:
         Reader that read them (``"uff"``, ``"nastran-punch"``).
     units : str
         Unit system of the file as understood by the reader.
+    history : tuple of str
+        Processing steps applied on import (normalisation, unit conversion,
+        merged geometry...).
+
+    Notes
+    -----
+    Node coordinates are NaN when the file carries none (a Nastran punch
+    file read without ``geometry=``); :attr:`has_coordinates` tells.
     """
 
     node_ids: np.ndarray
@@ -92,3 +115,249 @@ class FEModes:
         if hit.size == 0:
             raise KeyError(f"node {node} is not in the FE model ({self.source or 'in memory'})")
         return int(hit[0])
+
+    @property
+    def has_coordinates(self) -> bool:
+        """True if every node has finite coordinates."""
+        return bool(np.all(np.isfinite(self.xyz)))
+
+    def _where(self) -> str:
+        return self.source or "FE modes in memory"
+
+    def _row(self, node, name: str) -> int:
+        try:
+            value = float(node)
+        except (TypeError, ValueError):
+            raise FEGeometryError(f"{name}: fe_node must be an integer node label, got {node!r}") from None
+        if not np.isfinite(value) or value != round(value):
+            raise FEGeometryError(f"{name}: fe_node must be an integer node label, got {node!r}")
+        hit = np.flatnonzero(self.node_ids == int(value))
+        if hit.size == 0:
+            raise FEGeometryError(f"{name}: fe_node {int(value)} is not a node of the FE model ({self._where()}, "
+                                  f"{self.node_ids.size} nodes)")
+        return int(hit[0])
+
+    def nearest_node(self, position, tolerance: float = 0.05, *, name: str = "point") -> int:
+        """Label of the node closest to ``position``, if within ``tolerance``.
+
+        Parameters
+        ----------
+        position : array_like (3,)
+            Point [m].
+        tolerance : float, optional
+            Largest accepted distance [m] (default 0.05).
+        name : str, optional
+            Name of the point for error messages.
+
+        Returns
+        -------
+        int
+            Node label.
+
+        Raises
+        ------
+        MissingCoordinatesError
+            If the model has no node coordinates (punch file without geometry).
+        PointToleranceError
+            If no node lies within ``tolerance``; the message gives the
+            closest node and its distance.
+        """
+        tol = _check_tolerance(tolerance)
+        pos = np.asarray(position, float)
+        if pos.shape != (3,) or not np.all(np.isfinite(pos)):
+            raise FEGeometryError(f"{name}: position must be 3 finite coordinates [m], got {position!r}")
+        ok = np.all(np.isfinite(self.xyz), axis=1)
+        if not ok.any():
+            raise MissingCoordinatesError(
+                f"{name}: the FE model ({self._where()}) has no node coordinates, so the node nearest to "
+                f"{pos.tolist()} cannot be found; read it with geometry= (fem_import.read(path, geometry=...)) "
+                f"or give the fe_node")
+        rows = np.flatnonzero(ok)
+        dist = np.linalg.norm(self.xyz[rows] - pos, axis=1)
+        k = int(np.argmin(dist))
+        if dist[k] > tol:
+            raise PointToleranceError(
+                f"{name}: no FE node within {tol:g} m of {pos.tolist()}; the closest is node "
+                f"{int(self.node_ids[rows[k]])} at {dist[k]:.4g} m ({self._where()})")
+        return int(self.node_ids[rows[k]])
+
+    def at_points(self, fe_nodes, positions, directions, *, tolerance: float = 0.05, names=None) -> np.ndarray:
+        """Mode shapes at points rigidly attached to FE nodes, along given directions.
+
+        For a point ``p`` attached to node ``n`` (position ``x_n``, modal
+        translation ``u`` and rotation ``theta``) measuring along the unit
+        vector ``d``, the modal displacement is
+        ``d . (u + theta x (p - x_n))`` (small rotations of a rigid link).
+        With 3-DOF shapes (no rotations) it is ``d . u``, accepted only when
+        the point lies within ``tolerance`` of its node.  These are the shape
+        coefficients of the modal superposition ``x = [Phi] q`` (thesis
+        eq. 2.24) at the sensor and force locations.
+
+        Parameters
+        ----------
+        fe_nodes : sequence of int or None, or None
+            Node each point is attached to; None (or NaN) entries, or None
+            for all, take the nearest node within ``tolerance``.
+        positions : array_like (p, 3) or None
+            Point positions [m]; None: the points are at their nodes (zero
+            offset, works without node coordinates).
+        directions : array_like (p, 3)
+            Measuring directions; normalised (with a warning) if not unit.
+        tolerance : float, optional
+            Largest point-to-node distance [m] for the nearest-node search
+            and for 3-DOF shapes (default 0.05).
+        names : sequence of str, optional
+            Point names for error messages (default ``"point <k>"``).
+
+        Returns
+        -------
+        ndarray (p, m)
+            Real modal displacement of each point (row) in each mode
+            (column), mass-normalised like the shapes.
+
+        Raises
+        ------
+        FEGeometryError
+            Bad sizes, a zero/non-finite direction, an fe_node not in the
+            model (names the point and node).
+        MissingCoordinatesError
+            Positions given (or a nearest node asked) but the model has no
+            coordinates.
+        PointToleranceError
+            A 3-DOF model and a point farther than ``tolerance`` from its
+            node, or no node within ``tolerance`` (names the point and
+            distance).
+        """
+        tol = _check_tolerance(tolerance)
+        d = np.asarray(directions, float)
+        if d.ndim != 2 or d.shape[1] != 3:
+            raise FEGeometryError(f"directions must have shape (n_points, 3), got {d.shape}")
+        p = d.shape[0]
+        names = [f"point {k}" for k in range(p)] if names is None else [str(n) for n in names]
+        if len(names) != p:
+            raise FEGeometryError(f"names has {len(names)} entries for {p} points")
+        nodes = [None] * p if fe_nodes is None else list(fe_nodes)
+        if len(nodes) != p:
+            raise FEGeometryError(f"fe_nodes has {len(nodes)} entries for {p} directions")
+        pos = None
+        if positions is not None:
+            pos = np.asarray(positions, float)
+            if pos.shape != (p, 3):
+                raise FEGeometryError(f"positions must have shape ({p}, 3), got {pos.shape}")
+            bad = ~np.all(np.isfinite(pos), axis=1)
+            if bad.any():
+                k = int(np.argmax(bad))
+                raise FEGeometryError(f"{names[k]}: position must be finite, got {pos[k].tolist()}")
+        norm = np.linalg.norm(d, axis=1)
+        bad = ~np.isfinite(norm) | (norm == 0)
+        if bad.any():
+            k = int(np.argmax(bad))
+            raise FEGeometryError(f"{names[k]}: direction must be a finite non-zero vector, got {d[k].tolist()}")
+        off_unit = np.abs(norm - 1.0) > 1e-6
+        if off_unit.any():
+            k = int(np.argmax(off_unit))
+            warnings.warn(f"{names[k]}: direction {d[k].tolist()} has length {norm[k]:.6g}; directions are "
+                          f"normalised to unit length", UserWarning, stacklevel=2)
+        d = d / norm[:, None]
+
+        rows = np.empty(p, np.int64)
+        for k, node in enumerate(nodes):
+            if node is None or (isinstance(node, (float, np.floating)) and np.isnan(node)):
+                if pos is None:
+                    raise FEGeometryError(f"{names[k]}: neither fe_node nor position is given")
+                rows[k] = self.index(self.nearest_node(pos[k], tol, name=names[k]))
+            else:
+                rows[k] = self._row(node, names[k])
+
+        if pos is None:
+            offset = np.zeros((p, 3))
+        else:
+            node_xyz = self.xyz[rows]
+            missing = ~np.all(np.isfinite(node_xyz), axis=1)
+            if missing.any():
+                k = int(np.argmax(missing))
+                raise MissingCoordinatesError(
+                    f"{names[k]}: node {int(self.node_ids[rows[k]])} has no coordinates in {self._where()}, so the "
+                    f"offset of the point from its node is unknown; read the modes with geometry= "
+                    f"(fem_import.read(path, geometry=...)) or pass positions=None for points at their nodes")
+            offset = pos - node_xyz
+        u = self.shapes[:, rows, :3]
+        if self.has_rotations:
+            disp = u + np.cross(self.shapes[:, rows, 3:], offset[None, :, :])
+        else:
+            dist = np.linalg.norm(offset, axis=1)
+            far = dist > tol
+            if far.any():
+                k = int(np.argmax(far))
+                raise PointToleranceError(
+                    f"{names[k]}: the shapes have no rotations (3 DOF per node) and the point lies {dist[k]:.4g} m "
+                    f"from its node {int(self.node_ids[rows[k]])}, more than the tolerance {tol:g} m; attach it "
+                    f"to a closer node or raise tolerance")
+            disp = u
+        return np.einsum("mpk,pk->pm", disp, d)
+
+
+def _check_tolerance(tolerance) -> float:
+    try:
+        tol = float(tolerance)
+    except (TypeError, ValueError):
+        raise FEGeometryError(f"tolerance must be a non-negative distance [m], got {tolerance!r}") from None
+    if not np.isfinite(tol) or tol < 0:
+        raise FEGeometryError(f"tolerance must be a non-negative distance [m], got {tolerance!r}")
+    return tol
+
+
+def shapes_at_channels(fe_modes: FEModes, channels, *, tolerance: float = 0.05,
+                       quantity: str | None = "acceleration") -> np.ndarray:
+    """Mode shapes at the sensors of a channel table.
+
+    Parameters
+    ----------
+    fe_modes : FEModes
+    channels : pandas.DataFrame
+        Channel table (``shared/DESIGN.md`` schema): columns ``x, y, z, dx,
+        dy, dz``, optional ``fe_node`` (missing/NaN: nearest node within
+        ``tolerance``), optional ``name`` and ``quantity``.
+    tolerance : float, optional
+        See :meth:`FEModes.at_points`.
+    quantity : str or None, optional
+        Keep only rows with this ``quantity`` (default ``"acceleration"``,
+        i.e. drop the force row); None keeps all rows.
+
+    Returns
+    -------
+    ndarray (n_rows, m)
+        Shapes at the kept rows, in table order (``d . (u + theta x offset)``).
+
+    Raises
+    ------
+    ValueError
+        If a required column is missing (names it) or no row is kept.
+    FEGeometryError
+        As :meth:`FEModes.at_points`, naming the channel.
+    """
+    import pandas as pd
+
+    if not isinstance(channels, pd.DataFrame):
+        raise TypeError(f"channels must be a pandas DataFrame, got {type(channels).__name__}")
+    need = ["x", "y", "z", "dx", "dy", "dz"]
+    missing = [c for c in need if c not in channels.columns]
+    if missing:
+        raise ValueError(f"channel table lacks column(s) {missing}; required: {need}, optional: fe_node, name, "
+                         f"quantity")
+    rows = channels
+    if quantity is not None and "quantity" in channels.columns:
+        rows = channels[channels["quantity"] == quantity]
+        if rows.empty:
+            raise ValueError(f"channel table has no row with quantity {quantity!r}; quantities present: "
+                             f"{sorted(channels['quantity'].astype(str).unique())}")
+    if "name" in rows.columns:
+        names = [f"channel {n!r}" for n in rows["name"].tolist()]
+    else:
+        names = [f"channel row {i!r}" for i in rows.index.tolist()]
+    if "fe_node" in rows.columns:
+        nodes = [None if pd.isna(v) else v for v in rows["fe_node"].tolist()]
+    else:
+        nodes = None
+    return fe_modes.at_points(nodes, rows[["x", "y", "z"]].to_numpy(float), rows[["dx", "dy", "dz"]].to_numpy(float),
+                              tolerance=tolerance, names=names)

@@ -1,0 +1,367 @@
+"""Format registry and :func:`read`, after ObsPy's ``read()`` plugins.
+
+A reader registers a name, file-name patterns and a *sniffing* function that
+looks at the first bytes of a file; :func:`read` with ``format=None`` asks the
+sniffers (those whose patterns match the file name first, but the content
+decides, not the extension) and calls the first reader that recognises the
+file.  Readers return an :class:`~fem_import.modes.FEModes`.
+
+A reader may also provide a *geometry* function (nodes and elements only):
+it is what ``read(..., geometry=path)`` uses to add coordinates and elements
+to modes read from a file that has none (a Nastran punch file).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import fnmatch
+import logging
+import os
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .errors import FEReadError, UnknownFormatError
+from .modes import Element, FEModes
+
+__all__ = ["FormatInfo", "Geometry", "register_format", "unregister_format", "formats", "format_info",
+           "detect_format", "read", "read_geometry", "merge_geometry"]
+
+log = logging.getLogger("fem_import")
+
+#: Number of leading bytes handed to the sniffing functions.
+SNIFF_BYTES = 4096
+
+
+@dataclass(frozen=True, eq=False)
+class Geometry:
+    """Nodes and elements of an FE mesh, without modes (what ``geometry=`` merges in).
+
+    Parameters
+    ----------
+    node_ids : ndarray of int (n,)
+    xyz : ndarray (n, 3)
+        Coordinates [m].
+    elements : tuple of Element
+    source : str
+        File the geometry was read from.
+    units : str
+    """
+
+    node_ids: np.ndarray
+    xyz: np.ndarray
+    elements: tuple[Element, ...]
+    source: str = ""
+    units: str = "SI (m, kg, s)"
+
+
+@dataclass(frozen=True)
+class FormatInfo:
+    """A registered file format.
+
+    Parameters
+    ----------
+    name : str
+        Format name, the ``format=`` value of :func:`read` (lower case).
+    patterns : tuple of str
+        ``fnmatch`` patterns of usual file names (``"*.uff"``); they only
+        order the sniffers, the content decides.
+    sniff : callable(bytes) -> bool
+        Gets the first :data:`SNIFF_BYTES` bytes; True if the content is of
+        this format.  Must not raise.
+    reader : callable(path, **kwargs) -> FEModes
+    geometry : callable(path) -> Geometry, optional
+        Reads nodes and elements only; None if the format carries no geometry.
+    description : str
+    aliases : tuple of str
+        Other accepted names for ``format=``.
+    """
+
+    name: str
+    patterns: tuple[str, ...]
+    sniff: Callable[[bytes], bool]
+    reader: Callable[..., FEModes]
+    geometry: Callable[[str], Geometry] | None = None
+    description: str = ""
+    aliases: tuple[str, ...] = ()
+
+
+_REGISTRY: dict[str, FormatInfo] = {}
+_BUILTINS_LOADED = False
+
+
+def _load_builtins() -> None:
+    global _BUILTINS_LOADED
+    if not _BUILTINS_LOADED:
+        _BUILTINS_LOADED = True
+        from . import uff, punch  # noqa: F401  (they register themselves, in this order)
+
+
+def register_format(name: str, *, patterns, sniff, reader, geometry=None, description: str = "",
+                    aliases=(), replace: bool = False) -> FormatInfo:
+    """Register a reader.
+
+    Parameters
+    ----------
+    name : str
+        Format name (stored lower case).
+    patterns : sequence of str
+        File-name patterns, e.g. ``("*.pch", "*.punch")``.
+    sniff : callable(bytes) -> bool
+        Content test on the first :data:`SNIFF_BYTES` bytes.
+    reader : callable(path, **kwargs) -> FEModes
+    geometry : callable(path) -> Geometry, optional
+    description : str, optional
+    aliases : sequence of str, optional
+    replace : bool, optional
+        Allow replacing an already registered format of the same name.
+
+    Returns
+    -------
+    FormatInfo
+
+    Raises
+    ------
+    ValueError
+        If ``name`` (or an alias) is already registered and ``replace`` is False.
+    """
+    key = str(name).strip().lower()
+    if not key:
+        raise ValueError("register_format: name must be a non-empty string")
+    info = FormatInfo(key, tuple(str(p).lower() for p in patterns), sniff, reader, geometry, description,
+                      tuple(str(a).lower() for a in aliases))
+    if not replace:
+        taken = {n for i in _REGISTRY.values() for n in (i.name, *i.aliases)}
+        clash = sorted(taken & {key, *info.aliases})
+        if clash:
+            raise ValueError(f"register_format: format name(s) {clash} already registered; pass replace=True")
+    _REGISTRY[key] = info
+    return info
+
+
+def unregister_format(name: str) -> FormatInfo:
+    """Remove a registered format (by name or alias) and return its :class:`FormatInfo`.
+
+    Raises
+    ------
+    UnknownFormatError
+        If no format has that name.
+    """
+    info = format_info(name)
+    del _REGISTRY[info.name]
+    return info
+
+
+def formats() -> tuple[str, ...]:
+    """Names of the registered formats, in registration order.
+
+    Returns
+    -------
+    tuple of str
+        E.g. ``("uff", "nastran-punch")``.
+    """
+    _load_builtins()
+    return tuple(_REGISTRY)
+
+
+def _describe() -> str:
+    return "; ".join(f"{i.name} ({', '.join(i.patterns)})" for i in _REGISTRY.values())
+
+
+def format_info(name: str) -> FormatInfo:
+    """The :class:`FormatInfo` of a format name or alias (case-insensitive).
+
+    Raises
+    ------
+    UnknownFormatError
+        If no format has that name; the message lists the supported ones.
+    """
+    _load_builtins()
+    key = str(name).strip().lower()
+    for info in _REGISTRY.values():
+        if key == info.name or key in info.aliases:
+            return info
+    raise UnknownFormatError(f"unknown format {name!r}; supported formats: {_describe()}",
+                             supported=tuple(_REGISTRY))
+
+
+def _check_file(path) -> Path:
+    p = Path(os.fspath(path))
+    if not p.exists():
+        raise FileNotFoundError(2, f"FE file not found: {p}", str(p))
+    if p.is_dir():
+        raise IsADirectoryError(21, f"expected an FE file, got a directory: {p}", str(p))
+    return p
+
+
+def detect_format(path) -> FormatInfo:
+    """Sniff the format of ``path`` from its first bytes.
+
+    Formats whose file-name patterns match are asked first; the first whose
+    sniffing function accepts the content wins.
+
+    Raises
+    ------
+    FileNotFoundError
+        If ``path`` does not exist.
+    UnknownFormatError
+        If no registered format recognises the content; the message names
+        the file and lists the supported formats.
+    """
+    _load_builtins()
+    p = _check_file(path)
+    with open(p, "rb") as fh:
+        head = fh.read(SNIFF_BYTES)
+    name = p.name.lower()
+    infos = list(_REGISTRY.values())
+    infos.sort(key=lambda i: not any(fnmatch.fnmatch(name, pat) for pat in i.patterns))
+    for info in infos:
+        try:
+            ok = bool(info.sniff(head))
+        except Exception as exc:  # a plugin's sniffer must not break detection of the others
+            log.debug("sniffer of %s failed on %s: %r", info.name, p, exc)
+            ok = False
+        if ok:
+            log.debug("%s: detected format %s", p, info.name)
+            return info
+    what = "empty file" if not head else "content not recognised"
+    raise UnknownFormatError(
+        f"{p}: unknown or undetectable FE file format ({what}); supported formats: {_describe()}. "
+        f"Pass format= to force one.",
+        path=str(p), supported=tuple(_REGISTRY))
+
+
+def read_geometry(path, format: str | None = None) -> Geometry:
+    """Read nodes and elements (no modes) from a file of a format that carries geometry.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+    format : str, optional
+        Format name; sniffed when None.
+
+    Returns
+    -------
+    Geometry
+
+    Raises
+    ------
+    UnknownFormatError
+        If the format is unknown, or carries no geometry.
+    FEReadError
+        If the file is truncated or corrupt.
+    """
+    p = _check_file(path)
+    info = format_info(format) if format is not None else detect_format(p)
+    if info.geometry is None:
+        with_geo = [i.name for i in _REGISTRY.values() if i.geometry is not None]
+        raise UnknownFormatError(f"{p}: format {info.name!r} carries no node coordinates; "
+                                 f"geometry can be read from: {with_geo}", path=str(p),
+                                 supported=tuple(_REGISTRY))
+    return info.geometry(str(p))
+
+
+def _as_geometry(geometry) -> Geometry:
+    if isinstance(geometry, Geometry):
+        return geometry
+    if isinstance(geometry, FEModes):
+        return Geometry(geometry.node_ids, geometry.xyz, geometry.elements, geometry.source, geometry.units)
+    if isinstance(geometry, (str, os.PathLike)):
+        return read_geometry(geometry)
+    raise TypeError(f"geometry must be a file path, an FEModes or a Geometry, got {type(geometry).__name__}")
+
+
+def merge_geometry(modes: FEModes, geometry) -> FEModes:
+    """Coordinates and elements of ``geometry`` on the nodes of ``modes``.
+
+    Parameters
+    ----------
+    modes : FEModes
+    geometry : str, os.PathLike, FEModes or Geometry
+        Where the nodes and elements come from (a file is read with
+        :func:`read_geometry`).
+
+    Returns
+    -------
+    FEModes
+        A new object: the nodes of ``modes`` in the order of the geometry's
+        node list, their coordinates, and the geometry's elements whose nodes
+        all have shapes (others are dropped with a logged warning).
+
+    Raises
+    ------
+    FEReadError
+        If a node of ``modes`` is not in the geometry (names the first ones).
+    """
+    geo = _as_geometry(geometry)
+    gids = np.asarray(geo.node_ids, np.int64)
+    gxyz = np.asarray(geo.xyz, float)
+    have = set(modes.node_ids.tolist())
+    missing = sorted(have - set(gids.tolist()))
+    if missing:
+        raise FEReadError(geo.source or "geometry", f"{len(missing)} node(s) of the modes read from "
+                          f"{modes.source or 'memory'} are not in the geometry, first: {missing[:10]}")
+    keep = np.array([g in have for g in gids.tolist()], bool)
+    ids = gids[keep]
+    xyz = gxyz[keep]
+    row = {n: k for k, n in enumerate(modes.node_ids.tolist())}
+    order = np.array([row[n] for n in ids.tolist()], np.int64)
+    elements = [e for e in geo.elements if all(n in have for n in e.nodes)]
+    dropped = len(geo.elements) - len(elements)
+    if dropped:
+        log.warning("%s: %d element(s) of the geometry %s use nodes without mode shapes and were dropped",
+                    modes.source, dropped, geo.source)
+    step = f"geometry (coordinates, {len(elements)} elements) merged from {geo.source or 'memory'}"
+    return dataclasses.replace(modes, node_ids=ids, xyz=xyz, elements=tuple(elements),
+                               shapes=modes.shapes[:, order, :], history=modes.history + (step,))
+
+
+def read(path, format: str | None = None, *, geometry=None, **kwargs) -> FEModes:
+    """Read FE normal modes from a file through the format registry.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file.
+    format : str, optional
+        Format name or alias (see :func:`formats`): ``"uff"`` (alias
+        ``"unv"``) or ``"nastran-punch"`` (aliases ``"pch"``, ``"punch"``).
+        None (default): sniffed from the content, whatever the extension.
+    geometry : str, os.PathLike, FEModes or Geometry, optional
+        Source of node coordinates and elements to merge in (needed for a
+        Nastran punch file, which has none): see :func:`merge_geometry`.
+    **kwargs
+        Passed to the format's reader (e.g. ``subcase=`` for a punch file).
+
+    Returns
+    -------
+    FEModes
+        Mass-normalised modes in SI units.
+
+    Raises
+    ------
+    FileNotFoundError
+        If ``path`` does not exist (the message names it).
+    UnknownFormatError
+        If ``format`` is not a registered name, or the content is not
+        recognised; the message names the file and lists the formats.
+    FEReadError
+        If the file is truncated, corrupt or uses an unsupported feature; the
+        message names the file and, where known, the dataset and line.
+
+    Examples
+    --------
+    >>> import fem_import
+    >>> modes = fem_import.read("fe_design.pch", geometry="fe_design.uff")  # doctest: +SKIP
+    >>> modes.freqs_hz[6]  # doctest: +SKIP
+    71.53...
+    """
+    p = _check_file(path)
+    info = format_info(format) if format is not None else detect_format(p)
+    modes = info.reader(str(p), **kwargs)
+    if geometry is not None:
+        modes = merge_geometry(modes, geometry)
+    log.info("read %d modes on %d nodes from %s (%s)", len(modes), modes.node_ids.size, p, info.name)
+    return modes

@@ -1,0 +1,497 @@
+"""UFF (universal file, "UNV") reader of FE normal modes, through pyuff.
+
+Datasets used (layouts: UC-SDRL universal file descriptions, as printed by
+``pyuff.get_structure_<n>()``):
+
+* **164** units: code 1 (SI) is taken as is; another code is converted to SI
+  with the file's own factors ``L`` (length) and ``F`` (force) ("to convert
+  from universal file units to SI divide by the factor"): coordinates are
+  divided by ``L``; the file's mass unit is force unit * s^2 / length unit =
+  ``Mk = L / F`` kg.  Mass-normalised shapes (``x = Phi q`` with kinetic
+  energy ``q'^2 / 2``, thesis eq. 2.24, 2.29) have translations in
+  ``1 / sqrt(mass)`` and rotations in ``1 / (length sqrt(mass))``, so
+  translations are divided by ``sqrt(Mk)`` and rotations multiplied by
+  ``L / sqrt(Mk)``.  A non-SI code without usable factors raises
+  :class:`FEReadError`.
+* **2411** nodes (double precision) and the legacy **15** (single precision):
+  labels and coordinates.  Coordinate systems are assumed global.
+* **2412** elements: label, FE descriptor id, physical property and node
+  labels.  pyuff reads only the first line of node labels (8 labels), which
+  covers beams, triangles, quadrilaterals and masses; an element with more
+  nodes raises :class:`FEReadError` naming it.
+* **55** data at nodes, one dataset per mode: analysis type 2 (normal mode),
+  real data, 3 values per node (data characteristic 2: translations) or 6
+  (data characteristic 3: translations and rotations).  Record 8 gives the
+  frequency [Hz] and the modal mass.  Shapes with a modal mass ``m`` other
+  than 1 are scaled to unit modal mass, ``phi / sqrt(m)``; a modal mass of 0
+  (pyuff's default when writing) is taken as "already mass-normalised" with a
+  logged warning.
+
+Everything that pyuff parses is parsed by pyuff; this module only checks the
+dataset framing (so that a truncated last dataset is reported instead of
+silently dropped, as pyuff's block pairing would do) and validates what pyuff
+returns (consistent lengths, integral labels, finite values, node sets).
+Shapes are returned in the node order of dataset 2411 (file order).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import re
+
+import numpy as np
+
+from .errors import FEReadError
+from .modes import Element, FEModes
+from .registry import Geometry, register_format
+
+__all__ = ["read_uff", "read_uff_geometry", "sniff_uff"]
+
+log = logging.getLogger("fem_import")
+
+_SUPPORTED = (15, 164, 2411, 2412, 55)
+#: FE descriptors pyuff reads with an extra beam record (Record 2 of 2412).
+_BEAM_DESCRIPTORS = frozenset({11, 21, 22, 23, 24})
+_PYUFF_MAX_ELEMENT_NODES = 8
+_DELIM = b"    -1"
+
+
+# --------------------------------------------------------------------------
+# sniffing and framing
+# --------------------------------------------------------------------------
+def sniff_uff(head: bytes) -> bool:
+    """True if ``head`` starts (after blank lines) with a ``    -1`` delimiter and a dataset number."""
+    text = head.decode("latin-1")
+    lines = [ln for ln in text.splitlines() if ln.strip()]
+    if len(lines) < 2 or lines[0].strip() != "-1" or len(lines[0].rstrip()) != 6:
+        return False
+    return re.fullmatch(r"\s*\d{1,6}", lines[1][:6]) is not None
+
+
+def _delimiters(data: bytes) -> list[int]:
+    """Offsets of the ``    -1`` delimiters, with exactly pyuff's rule (``UFF.refresh``)."""
+    out = []
+    n = len(data)
+    ind = -1
+    blanks = b" " * 74
+    while True:
+        ind = data.find(_DELIM, ind + 1)
+        if ind == -1:
+            return out
+        if ind + 6 == n or (ind + 6 < n and data[ind + 6] in (10, 13)) or \
+                (ind + 80 < n and data[ind + 6:ind + 80] == blanks):
+            out.append(ind)
+
+
+def _check_framing(path: str, data: bytes) -> list[int]:
+    """Check that every dataset is closed and nothing lies between datasets.
+
+    Returns the 1-based line number of each dataset's opening delimiter.
+    """
+    marks = _delimiters(data)
+
+    def line_of(offset: int) -> int:
+        return data.count(b"\n", 0, offset) + 1
+
+    if not marks:
+        raise FEReadError(path, "no UFF dataset found (no '    -1' delimiter line)")
+    if len(marks) % 2:
+        raise FEReadError(path, "the last dataset has no closing '    -1' delimiter: the file is truncated",
+                          line=line_of(marks[-1]))
+    starts = marks[0::2]
+    ends = marks[1::2]
+    gaps = [(0, starts[0])] + [(e + 6, s) for e, s in zip(ends[:-1], starts[1:])] + [(ends[-1] + 6, len(data))]
+    for lo, hi in gaps:
+        chunk = data[lo:hi]
+        if chunk.strip(b" \t\r\n\x00\x1a"):
+            bad = lo + len(chunk) - len(chunk.lstrip(b" \t\r\n\x00\x1a"))
+            raise FEReadError(path, "text outside any dataset (between '    -1' delimiters): the file is "
+                              "corrupt or a dataset delimiter is missing", line=line_of(bad))
+    return [(line_of(s), s, e) for s, e in zip(starts, ends)]
+
+
+def _first_long_element(block: bytes) -> tuple[int, int, int] | None:
+    """(element, descriptor, node count) of the first 2412 element with more than 8 nodes, if any.
+
+    Only used to explain a pyuff failure: walks the records by the dataset's
+    layout (Record 1 with 6 integers, the beam record for descriptors 11 and
+    21-24, then ceil(n / 8) lines of node labels).
+    """
+    lines = block.decode("latin-1").splitlines()[2:]
+    i = 0
+    while i < len(lines):
+        rec = lines[i].split()
+        if len(rec) != 6 or not all(re.fullmatch(r"-?[0-9]+", t) for t in rec):
+            return None
+        eid, desc, nn = int(rec[0]), int(rec[1]), int(rec[5])
+        if nn > _PYUFF_MAX_ELEMENT_NODES:
+            return eid, desc, nn
+        i += 1 + (desc in _BEAM_DESCRIPTORS) + max(1, -(-nn // 8))
+    return None
+
+
+# --------------------------------------------------------------------------
+# helpers on pyuff's output
+# --------------------------------------------------------------------------
+def _labels(path, values, what, dataset, line) -> np.ndarray:
+    """Integral, positive labels from pyuff's float/int output."""
+    arr = np.asarray(values, dtype=float).ravel()
+    bad = ~np.isfinite(arr) | (arr != np.round(arr)) | (arr <= 0) | (arr > 2**31)
+    if np.any(bad):
+        k = int(np.argmax(bad))
+        raise FEReadError(path, f"{what} must be positive integers, got {arr[k]!r} in record {k + 1}: "
+                          f"the dataset is corrupt", dataset=dataset, line=line)
+    return arr.astype(np.int64)
+
+
+def _units_factors(path, dset, line) -> tuple[float, float, str]:
+    """(length factor, mass factor, description) converting file units to SI by division."""
+    code = dset.get("units_code")
+    desc = str(dset.get("units_description", "")).strip()
+    lf = float(dset.get("length", float("nan")))
+    ff = float(dset.get("force", float("nan")))
+    if code == 1:
+        if not (math.isclose(lf, 1.0, rel_tol=1e-9) and math.isclose(ff, 1.0, rel_tol=1e-9)):
+            raise FEReadError(path, f"units code 1 (SI) with conversion factors length {lf!r}, force {ff!r}; "
+                              f"expected 1 and 1", dataset="164", line=line)
+        return 1.0, 1.0, "SI (m, kg, s)"
+    if not (np.isfinite(lf) and np.isfinite(ff) and lf > 0 and ff > 0):
+        raise FEReadError(path, f"non-SI units code {code} ({desc!r}) without usable conversion factors "
+                          f"(length {lf!r}, force {ff!r}); expected positive factors to convert to m and N",
+                          dataset="164", line=line)
+    return lf, lf / ff, f"SI (m, kg, s), converted from units code {code} ({desc})"
+
+
+class _Parts:
+    """What a UFF file holds, validated (internal)."""
+
+    def __init__(self):
+        self.node_ids: np.ndarray | None = None
+        self.xyz: np.ndarray | None = None
+        self.node_line: int | None = None
+        self.elements: list[Element] = []
+        self.length_factor = 1.0
+        self.mass_factor = 1.0
+        self.units = "SI (m, kg, s)"
+        self.modes: list[dict] = []
+        self.history: list[str] = []
+
+
+def _read_parts(path: str, *, want_modes: bool) -> _Parts:
+    import pyuff
+
+    with open(path, "rb") as fh:
+        data = fh.read()
+    frames = _check_framing(path, data)
+    start_lines = [f[0] for f in frames]
+    try:
+        uf = pyuff.UFF(path)
+        types = np.asarray(uf.get_set_types(), dtype=np.int64)
+    except Exception as exc:  # pyuff raises bare Exception
+        raise FEReadError(path, f"pyuff could not index the datasets: {exc}") from exc
+    if types.size != len(start_lines):
+        raise FEReadError(path, f"pyuff found {types.size} datasets where the delimiters frame "
+                          f"{len(start_lines)}: the file is corrupt")
+
+    parts = _Parts()
+    node_chunks: list[tuple[np.ndarray, np.ndarray, int]] = []
+    element_sets: list[tuple[dict, int]] = []
+    wanted = {15, 164, 2411, 2412} | ({55} if want_modes else set())
+    ignored: dict[int, int] = {}
+    for k, (kind, line) in enumerate(zip(types.tolist(), start_lines)):
+        if kind <= 0:
+            raise FEReadError(path, "the dataset number after the '    -1' delimiter is missing or not an "
+                              "integer", line=line + 1)
+        if kind not in wanted:
+            ignored[kind] = ignored.get(kind, 0) + 1
+            continue
+        try:
+            dset = uf.read_sets(setn=k)
+        except Exception as exc:
+            hint = ""
+            if kind == 2412:
+                long = _first_long_element(data[frames[k][1]:frames[k][2]])
+                if long is not None:
+                    raise FEReadError(path, f"element {long[0]} (FE descriptor {long[1]}) has {long[2]} nodes; "
+                                      f"pyuff reads only the first line of node labels, so elements with more than "
+                                      f"{_PYUFF_MAX_ELEMENT_NODES} nodes are not supported", dataset="2412",
+                                      line=line) from exc
+                hint = (" (pyuff reads at most 8 node labels per element and expects the beam record for "
+                        "descriptors 11, 21-24)")
+            raise FEReadError(path, f"pyuff could not read this dataset: {exc}{hint}", dataset=str(kind),
+                              line=line) from exc
+        if not isinstance(dset, dict):
+            raise FEReadError(path, f"pyuff returned {type(dset).__name__} instead of a dataset dict",
+                              dataset=str(kind), line=line)
+        if kind == 164:
+            parts.length_factor, parts.mass_factor, parts.units = _units_factors(path, dset, line)
+        elif kind in (2411, 15):
+            node_chunks.append(_nodes(path, dset, kind, line))
+        elif kind == 2412:
+            element_sets.append((dset, line))
+        else:
+            parts.modes.append(_mode(path, dset, line, len(parts.modes) + 1))
+    if ignored:
+        level = logging.INFO if want_modes else logging.DEBUG
+        log.log(level, "%s: datasets not used by the FE reader: %s", path,
+                ", ".join(f"{n} x{c}" for n, c in sorted(ignored.items())))
+
+    if node_chunks:
+        ids = np.concatenate([c[0] for c in node_chunks])
+        xyz = np.concatenate([c[1] for c in node_chunks])
+        uniq, counts = np.unique(ids, return_counts=True)
+        if np.any(counts > 1):
+            raise FEReadError(path, f"node label(s) defined more than once: {uniq[counts > 1][:10].tolist()}",
+                              dataset="2411", line=node_chunks[0][2])
+        parts.node_ids, parts.xyz, parts.node_line = ids, xyz / parts.length_factor, node_chunks[0][2]
+        if parts.length_factor != 1.0:
+            parts.history.append(f"coordinates divided by the file's length factor {parts.length_factor:g} (to m)")
+    known = set(parts.node_ids.tolist()) if parts.node_ids is not None else None
+    seen: set[int] = set()
+    for dset, line in element_sets:
+        for el in _elements(path, dset, line, known):
+            if el.element_id in seen:
+                raise FEReadError(path, f"element label {el.element_id} is defined more than once",
+                                  dataset="2412", line=line)
+            seen.add(el.element_id)
+            parts.elements.append(el)
+    parts.elements.sort(key=lambda e: e.element_id)
+    return parts
+
+
+def _nodes(path, dset, kind, line) -> tuple[np.ndarray, np.ndarray, int]:
+    keys = ("node_nums", "def_cs", "disp_cs", "color", "x", "y", "z")
+    try:
+        cols = [np.asarray(dset[key], dtype=float).ravel() for key in keys]
+    except (KeyError, TypeError, ValueError) as exc:
+        raise FEReadError(path, f"pyuff returned no usable node table ({exc!r})", dataset=str(kind),
+                          line=line) from exc
+    n = cols[0].size
+    if any(c.size != n for c in cols):
+        raise FEReadError(path, "the number of values is not 7 per node (label, 2 coordinate systems, colour, "
+                          "x, y, z): a record is truncated or corrupt", dataset=str(kind), line=line)
+    if n == 0:
+        raise FEReadError(path, "no nodes in the dataset", dataset=str(kind), line=line)
+    ids = _labels(path, cols[0], "node labels", str(kind), line)
+    for c, what in zip(cols[1:4], ("coordinate system numbers", "displacement coordinate system numbers",
+                                   "colour numbers")):
+        if np.any(~np.isfinite(c) | (c != np.round(c)) | (c < 0)):
+            k = int(np.argmax(~np.isfinite(c) | (c != np.round(c)) | (c < 0)))
+            raise FEReadError(path, f"{what} must be non-negative integers, got {c[k]!r} for node record "
+                              f"{k + 1}: a record is corrupt or misaligned", dataset=str(kind), line=line)
+    cs = np.unique(np.concatenate([cols[1], cols[2]]))
+    if np.any(cs > 1):
+        log.warning("%s: nodes use coordinate systems %s; they are taken as the global system (dataset 2420 "
+                    "is not applied)", path, cs[cs > 1].astype(int).tolist())
+    xyz = np.column_stack(cols[4:7])
+    if not np.all(np.isfinite(xyz)):
+        k = int(np.argmax(~np.all(np.isfinite(xyz), axis=1)))
+        raise FEReadError(path, f"node {ids[k]} has non-finite coordinates {xyz[k].tolist()}",
+                          dataset=str(kind), line=line)
+    return ids, xyz, line
+
+
+def _elements(path, dset, line, known: set[int] | None) -> list[Element]:
+    out = []
+    for desc, records in dset.items():
+        if not isinstance(desc, (int, np.integer)):
+            continue  # pyuff's legacy 'triangle' / 'quad' summaries
+        for rec in records:
+            try:
+                eid = int(rec["element_nums"])
+                nn = int(rec["num_nodes"])
+                nodes = tuple(int(n) for n in rec["nodes_nums"])
+                prop = int(rec.get("phys_table", 0))
+            except (KeyError, TypeError, ValueError) as exc:
+                raise FEReadError(path, f"pyuff returned an incomplete element record ({exc!r})",
+                                  dataset="2412", line=line) from exc
+            if nn > _PYUFF_MAX_ELEMENT_NODES:
+                raise FEReadError(path, f"element {eid} (FE descriptor {desc}) has {nn} nodes; pyuff reads only "
+                                  f"the first line of node labels ({_PYUFF_MAX_ELEMENT_NODES} labels), so "
+                                  f"elements with more than {_PYUFF_MAX_ELEMENT_NODES} nodes are not supported",
+                                  dataset="2412", line=line)
+            if nn != len(nodes) or nn < 1:
+                raise FEReadError(path, f"element {eid} (FE descriptor {desc}) declares {nn} nodes but lists "
+                                  f"{len(nodes)}: the record is truncated or corrupt", dataset="2412", line=line)
+            if eid <= 0 or any(n <= 0 for n in nodes):
+                raise FEReadError(path, f"element {eid} has non-positive labels {nodes}", dataset="2412", line=line)
+            if known is not None:
+                unknown = [n for n in nodes if n not in known]
+                if unknown:
+                    raise FEReadError(path, f"element {eid} (FE descriptor {desc}) uses node(s) {unknown} that "
+                                      f"are not in the node dataset (2411/15)", dataset="2412", line=line)
+            out.append(Element(eid, int(desc), nodes, prop))
+    return out
+
+
+def _mode(path, dset, line, k) -> dict:
+    """Validated content of one dataset 55 (k = its position among the 55s, 1-based)."""
+    where = f"55 (mode {k})"
+    at = dset.get("analysis_type")
+    if at != 2:
+        raise FEReadError(path, f"analysis type {at!r}; only normal modes (analysis type 2) are supported",
+                          dataset=where, line=line)
+    if dset.get("data_type") != 2:
+        raise FEReadError(path, f"data type {dset.get('data_type')!r}; normal modes must be real (data type 2)",
+                          dataset=where, line=line)
+    ch, per = dset.get("data_ch"), dset.get("n_data_per_node")
+    if (ch, per) not in ((2, 3), (3, 6)):
+        raise FEReadError(path, f"data characteristic {ch!r} with {per!r} values per node; expected 2 (3 DOF "
+                          f"translation, 3 values) or 3 (6 DOF translation and rotation, 6 values)",
+                          dataset=where, line=line)
+    if dset.get("spec_data_type") not in (8, 0, None):
+        log.warning("%s, dataset %s: specific data type %s is not displacement (8); read as mode shape",
+                    path, where, dset.get("spec_data_type"))
+    try:
+        nodes = np.asarray(dset["node_nums"])
+        vals = np.column_stack([np.asarray(dset[f"r{i}"], dtype=float) for i in range(1, per + 1)])
+        freq = float(dset["freq"])
+        mm = float(dset["modal_m"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise FEReadError(path, f"pyuff returned an incomplete dataset ({exc!r})", dataset=where,
+                          line=line) from exc
+    if nodes.ndim != 1 or nodes.size == 0 or vals.shape[0] != nodes.size:
+        raise FEReadError(path, f"{nodes.size} node labels but {vals.shape[0]} value records: the dataset is "
+                          f"truncated or corrupt", dataset=where, line=line)
+    ids = _labels(path, nodes, "node labels", where, line)
+    uniq, counts = np.unique(ids, return_counts=True)
+    if np.any(counts > 1):
+        raise FEReadError(path, f"node(s) {uniq[counts > 1][:10].tolist()} appear more than once",
+                          dataset=where, line=line)
+    bad = ~np.all(np.isfinite(vals), axis=1)
+    if np.any(bad):
+        raise FEReadError(path, f"mode {k} has non-finite shape values at node {ids[int(np.argmax(bad))]}",
+                          dataset=where, line=line)
+    if not math.isfinite(freq):
+        raise FEReadError(path, f"mode {k} has a non-finite frequency {freq!r}", dataset=where, line=line)
+    if not math.isfinite(mm) or mm < 0:
+        raise FEReadError(path, f"mode {k} has modal mass {mm!r}; expected a positive number (or 0 for "
+                          f"'mass-normalised')", dataset=where, line=line)
+    return {"k": k, "mode_n": dset.get("mode_n"), "freq": freq, "modal_mass": mm, "ids": ids, "vals": vals,
+            "line": line}
+
+
+def read_uff_geometry(path: str) -> Geometry:
+    """Nodes (2411/15) and elements (2412) of a universal file, in SI units.
+
+    Raises
+    ------
+    FEReadError
+        If the file is truncated or corrupt, or has no node dataset.
+    """
+    parts = _read_parts(path, want_modes=False)
+    if parts.node_ids is None:
+        raise FEReadError(path, "no node dataset (2411 or 15): the file carries no geometry")
+    return Geometry(parts.node_ids, parts.xyz, tuple(parts.elements), str(path), parts.units)
+
+
+def read_uff(path: str) -> FEModes:
+    """Read FE normal modes from a universal file (datasets 164, 2411/15, 2412, 55).
+
+    Parameters
+    ----------
+    path : str
+        The file.
+
+    Returns
+    -------
+    FEModes
+        Modes in file order; shapes ``(m, n_nodes, 3 or 6)`` in the node
+        order of dataset 2411 (restricted to the nodes that have shapes),
+        scaled to unit modal mass, SI units.  Without a node dataset the
+        node order is that of the first mode and the coordinates are NaN.
+
+    Raises
+    ------
+    FEReadError
+        If the file is truncated or corrupt, has no dataset 55, mixes 3- and
+        6-DOF shapes, if a mode misses a node of the others, if a mode has a
+        node unknown to dataset 2411, if a shape value is not finite, or if
+        the units cannot be converted to SI.  The message names the file,
+        dataset and line.
+    """
+    parts = _read_parts(path, want_modes=True)
+    if not parts.modes:
+        raise FEReadError(path, "no dataset 55 (normal mode shapes) in the file")
+    history = list(parts.history)
+    first = parts.modes[0]
+    n_dof = first["vals"].shape[1]
+    ref = set(first["ids"].tolist())
+    for md in parts.modes[1:]:
+        where = f"55 (mode {md['k']})"
+        if md["vals"].shape[1] != n_dof:
+            raise FEReadError(path, f"mode {md['k']} has {md['vals'].shape[1]} values per node but mode 1 has "
+                              f"{n_dof}: all modes must have the same DOFs", dataset=where, line=md["line"])
+        have = set(md["ids"].tolist())
+        if have != ref:
+            missing = sorted(ref - have)
+            extra = sorted(have - ref)
+            what = (f"lacks node(s) {missing[:10]} present in mode 1" if missing
+                    else f"has node(s) {extra[:10]} absent from mode 1")
+            raise FEReadError(path, f"mode {md['k']} {what}: all modes must cover the same nodes",
+                              dataset=where, line=md["line"])
+
+    if parts.node_ids is not None:
+        known = set(parts.node_ids.tolist())
+        extra = sorted(ref - known)
+        if extra:
+            raise FEReadError(path, f"mode shapes have node(s) {extra[:10]} that are not in the node dataset "
+                              f"(2411/15){' ...' if len(extra) > 10 else ''}", dataset="55 (mode 1)",
+                              line=first["line"])
+        keep = np.array([n in ref for n in parts.node_ids.tolist()], bool)
+        node_ids, xyz = parts.node_ids[keep], parts.xyz[keep]
+        if not keep.all():
+            log.info("%s: %d node(s) of dataset 2411 have no mode shape and are left out", path, int((~keep).sum()))
+        elements = [e for e in parts.elements if all(n in ref for n in e.nodes)]
+        if len(elements) < len(parts.elements):
+            log.warning("%s: %d element(s) use nodes without mode shapes and were dropped", path,
+                        len(parts.elements) - len(elements))
+    else:
+        log.warning("%s: no node dataset (2411 or 15); node coordinates are unknown (NaN)", path)
+        node_ids = first["ids"]
+        xyz = np.full((node_ids.size, 3), np.nan)
+        elements = []
+
+    shapes = np.empty((len(parts.modes), node_ids.size, n_dof))
+    for j, md in enumerate(parts.modes):
+        order = np.argsort(md["ids"], kind="stable")
+        pos = np.searchsorted(md["ids"], node_ids, sorter=order)
+        shapes[j] = md["vals"][order[pos]]
+    freqs = np.array([md["freq"] for md in parts.modes])
+    if np.any(freqs < 0):
+        neg = np.flatnonzero(freqs < 0)
+        log.warning("%s: mode(s) %s have negative frequencies %s Hz; set to 0 Hz", path, (neg + 1).tolist(),
+                    freqs[neg].tolist())
+        freqs = np.maximum(freqs, 0.0)
+
+    mm = np.array([md["modal_mass"] for md in parts.modes])
+    zero = np.flatnonzero(mm == 0)
+    if zero.size:
+        log.warning("%s: mode(s) %s have modal mass 0 (not given); the shapes are assumed mass-normalised",
+                    path, (zero + 1).tolist())
+        history.append(f"modal mass 0 (not given) in mode(s) {(zero + 1).tolist()}: assumed mass-normalised")
+    scale = np.where(mm > 0, mm, 1.0)
+    other = np.flatnonzero((mm > 0) & (mm != 1.0))
+    if other.size:
+        shapes = shapes / np.sqrt(scale)[:, None, None]
+        history.append("normalised to unit modal mass (phi / sqrt(m)): "
+                       + ", ".join(f"mode {k + 1} m={mm[k]:g}" for k in other[:20])
+                       + (" ..." if other.size > 20 else ""))
+    if parts.length_factor != 1.0 or parts.mass_factor != 1.0:
+        # x = phi q with T = q'^2 / 2: translations of phi are 1/sqrt(mass), rotations 1/(length sqrt(mass))
+        lf, mk = parts.length_factor, parts.mass_factor
+        shapes = shapes / math.sqrt(mk)
+        if n_dof == 6:
+            shapes[:, :, 3:] *= lf
+        history.append(f"shapes converted to SI: translations / sqrt({mk:g}) (file mass unit in kg)"
+                       + (f", rotations * {lf:g} / sqrt({mk:g})" if n_dof == 6 else ""))
+    history.insert(0, f"read {len(parts.modes)} modes ({n_dof} DOF/node, {node_ids.size} nodes) from UFF {path}")
+    return FEModes(node_ids=node_ids, xyz=xyz, elements=tuple(elements), freqs_hz=freqs, shapes=shapes,
+                   modal_mass=np.ones(freqs.size), source=str(path), format="uff", units=parts.units,
+                   history=tuple(history))
+
+
+register_format("uff", patterns=("*.uff", "*.unv", "*.uf"), sniff=sniff_uff, reader=read_uff,
+                geometry=read_uff_geometry, aliases=("unv", "universal"),
+                description="Universal file: 164, 2411/15, 2412, 55 (via pyuff)")
