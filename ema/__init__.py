@@ -7,3 +7,50 @@ LSFD shapes, merges the setups' mode lists and pairs the experimental modes
 with the FE modes of :mod:`fem_import` by MAC. Its output (a mode set and the
 measured FRFs) feeds :mod:`receptance`.
 """
+
+# --- input side: channel tables, hammer-test reading, hit screening, FRF estimation ---
+from .channels import ChannelTableError, read_channels, validate_channels
+from .estimate import EstimationError, ForceWindow, auto_exp_decay, estimate_frf
+from .frf import FRFShapeError, FrequencyResponse
+from .hammer_io import (
+    ChannelDirectionWarning,
+    ChannelMismatchError,
+    FunctionTypeError,
+    HammerDataError,
+    HammerTest,
+    NonFiniteDataError,
+    SamplingError,
+    UFFReadError,
+    UnknownFormatError,
+    ZeroForceError,
+    read_hammer,
+)
+from .screening import Rejection, Screening, ScreeningConfig, screen_hits
+from .uff_frf import read_frf_uff
+
+__all__ = [
+    "ChannelTableError", "read_channels", "validate_channels",
+    "EstimationError", "ForceWindow", "auto_exp_decay", "estimate_frf",
+    "FRFShapeError", "FrequencyResponse",
+    "ChannelDirectionWarning", "ChannelMismatchError", "FunctionTypeError", "HammerDataError", "HammerTest",
+    "NonFiniteDataError", "SamplingError", "UFFReadError", "UnknownFormatError", "ZeroForceError", "read_hammer",
+    "Rejection", "Screening", "ScreeningConfig", "screen_hits",
+    "read_frf_uff",
+]
+# --- end of input side ---
+
+# --- identification: LSCE, stabilisation, automatic pole selection, refinement, LSFD ---
+from .identify import Identification, PoleCluster, RejectedPole, identify, select_poles, select_poles_at
+from .lsce import IdentificationError, PoleSweep, lsce, zoom_impulse_response
+from .lsfd import DEFAULT_RESIDUALS, LSFDResult, RefinedPoles, lsfd, mcf, mpc, mpd, refine_poles, synthesize
+from .modeset import ModeSet
+from .stabilisation import StabilisationDiagram, stabilisation_diagram
+
+__all__ += [
+    "Identification", "PoleCluster", "RejectedPole", "identify", "select_poles", "select_poles_at",
+    "IdentificationError", "PoleSweep", "lsce", "zoom_impulse_response",
+    "DEFAULT_RESIDUALS", "LSFDResult", "RefinedPoles", "lsfd", "mcf", "mpc", "mpd", "refine_poles", "synthesize",
+    "ModeSet",
+    "StabilisationDiagram", "stabilisation_diagram",
+]
+# --- end of identification ---

@@ -60,6 +60,8 @@ class FrequencyResponse:
         so identified damping must be corrected (``sigma_true = sigma - a``).
     history : tuple of str
         Processing steps applied, oldest first.
+    n_averages : ndarray of int (n_out,), optional
+        Number of measurements (hits) averaged into each output's estimate.
     """
 
     freqs_hz: np.ndarray
@@ -72,6 +74,7 @@ class FrequencyResponse:
     channels: pd.DataFrame | None = None
     exp_window_decay: float = 0.0
     history: tuple[str, ...] = field(default_factory=tuple)
+    n_averages: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         f = np.asarray(self.freqs_hz, dtype=float)
@@ -107,6 +110,14 @@ class FrequencyResponse:
             raise FRFShapeError(f"channels has {len(self.channels)} rows but there are {len(outputs)} outputs")
         if not np.isfinite(self.exp_window_decay) or self.exp_window_decay < 0:
             raise ValueError(f"exp_window_decay must be finite and >= 0, got {self.exp_window_decay!r}")
+        n_avg = None
+        if self.n_averages is not None:
+            n_avg = np.asarray(self.n_averages).astype(int, copy=True)
+            if n_avg.shape != (d.shape[0],):
+                raise FRFShapeError(f"n_averages must have shape ({d.shape[0]},) (one per output), "
+                                    f"got {np.shape(self.n_averages)}")
+            n_avg.setflags(write=False)
+        object.__setattr__(self, "n_averages", n_avg)
         f.setflags(write=False)
         d.setflags(write=False)
         object.__setattr__(self, "freqs_hz", f)
@@ -164,6 +175,7 @@ class FrequencyResponse:
                 raise ValueError(f"band {band_hz} Hz holds no frequency line (axis {self.freqs_hz[0]}–{self.freqs_hz[-1]} Hz)")
         coh = None if self.coherence is None else self.coherence[np.ix_(oi, ii, fi)]
         ch = None if self.channels is None else self.channels.iloc[oi].reset_index(drop=True)
+        n_avg = None if self.n_averages is None else self.n_averages[oi]
         return replace(
             self,
             freqs_hz=self.freqs_hz[fi],
@@ -172,6 +184,7 @@ class FrequencyResponse:
             inputs=tuple(self.inputs[i] for i in ii),
             coherence=coh,
             channels=ch,
+            n_averages=n_avg,
         )
 
     @staticmethod

@@ -14,7 +14,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-__all__ = ["ModeSet"]
+__all__ = ["ModeSet", "SCALINGS"]
+
+#: Allowed values of :attr:`ModeSet.scaling`.
+SCALINGS: tuple[str, ...] = ("unit", "mass", "modal_constant")
 
 
 @dataclass(frozen=True, eq=False)
@@ -39,8 +42,12 @@ class ModeSet:
     setup : tuple of str
         Setup(s) each mode was identified in (``"flexural"``, ``"flexural+torsional"``...).
     scaling : str
-        How shapes are scaled: ``"unit"`` (largest component 1) or ``"mass"``
-        (mass-normalised through the driving point).
+        How shapes are scaled: ``"unit"`` (largest component 1), ``"mass"``
+        (mass-normalised through the driving point) or ``"modal_constant"``
+        (the modal constants ``A_jr`` of the receptance
+        ``H_j = sum_r A_jr / (w_r^2 - w^2 + 2 i zeta_r w_r w)`` for the test's
+        force point: ``A_jr = c_jr b_r``, response shape times force-point
+        shape of the mass-normalised modes; see :mod:`ema.lsfd`).
     source : str
         Where the modes come from (file, method).
     history : tuple of str
@@ -73,8 +80,8 @@ class ModeSet:
                 raise ValueError(f"{name} must have shape ({m},), got {np.shape(getattr(self, name))}")
         if len(self.setup) != m:
             raise ValueError(f"setup must name {m} entries, got {len(self.setup)}")
-        if self.scaling not in ("unit", "mass"):
-            raise ValueError(f"scaling must be 'unit' or 'mass', got {self.scaling!r}")
+        if self.scaling not in SCALINGS:
+            raise ValueError(f"scaling must be one of {SCALINGS}, got {self.scaling!r}")
         object.__setattr__(self, "freqs_hz", f)
         object.__setattr__(self, "zeta", np.asarray(self.zeta, float))
         object.__setattr__(self, "shapes", shapes)

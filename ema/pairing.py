@@ -88,34 +88,49 @@ def fe_shapes_at_dofs(fe: FEModes, channels: pd.DataFrame, *, tolerance: float =
     )
 
 
-def describe_fe_mode(fe: FEModes, k: int) -> str:
-    """A short description of an FE mode from its kinematics about the y (axle) axis.
+def describe_fe_mode(fe: FEModes, shape: np.ndarray | int) -> str:
+    """A short description of an FE shape from its kinematics about the y (axle) axis.
 
-    Heuristic: nodes on the axle axis (radius < 5 mm) show torsion as
-    rotation about y, bending as x/z translation and axial motion as y
-    translation; off-axis nodes show wheel/disc out-of-plane motion, whose
-    circumferential harmonic gives the nodal diameters.
+    Heuristic, for wheelset-like models: nodes on the axle axis (radius
+    < 5 mm) show torsion as rotation about y, bending as x/z translation and
+    axial motion as y translation; nodes of the wheels and discs (radius
+    > 0.2 m) show out-of-plane (y) motion, whose circumferential harmonic on
+    each ring gives the nodal diameters. ``shape`` is an (n_nodes, n_dof)
+    array or the index of one of ``fe``'s modes.
     """
-    if fe.freqs_hz[k] < 0.1:
-        return "rigid body"
-    u = fe.shapes[k]
+    if isinstance(shape, (int, np.integer)):
+        if fe.freqs_hz[shape] < 0.1:
+            return "rigid body"
+        shape = fe.shapes[shape]
+    u = np.asarray(shape, float)
     r = np.hypot(fe.xyz[:, 0], fe.xyz[:, 2])
     on_axis = r < 5e-3
-    if not on_axis.any() or not fe.has_rotations:
+    if not on_axis.any() or u.shape[1] < 6:
         return "flexible mode"
     ax = u[on_axis]
     # rotation about y times a typical axle radius makes torsion comparable with translations
-    torsion = np.sum((0.08 * ax[:, 4]) ** 2)
-    bend_x, bend_z, axial = np.sum(ax[:, 0] ** 2), np.sum(ax[:, 2] ** 2), np.sum(ax[:, 1] ** 2)
-    off = ~on_axis & (r > 0.2)
-    out_of_plane = np.sum(u[off, 1] ** 2) / max(off.sum(), 1) * on_axis.sum()
-    parts = {"torsion": torsion, "bending (x)": bend_x, "bending (z)": bend_z, "axial": axial, "wheel/disc": out_of_plane}
+    parts = {
+        "torsion": np.sum((0.08 * ax[:, 4]) ** 2),
+        "bending (x)": np.sum(ax[:, 0] ** 2),
+        "bending (z)": np.sum(ax[:, 2] ** 2),
+        "axial": np.sum(ax[:, 1] ** 2),
+    }
+    off = r > 0.2
+    rings = {}
+    for k in np.flatnonzero(off):
+        rings.setdefault((round(fe.xyz[k, 1], 3), round(r[k], 3)), []).append(k)
+    harmonics = np.zeros(5)
+    wheel = 0.0
+    for idx in rings.values():
+        idx = np.array(idx)
+        theta = np.arctan2(fe.xyz[idx, 2], fe.xyz[idx, 0])
+        uy = u[idx, 1]
+        wheel += np.mean(uy**2)
+        harmonics += [abs(np.mean(uy * np.exp(-1j * n * theta))) for n in range(5)]
+    parts["wheel/disc out-of-plane"] = wheel / max(len(rings), 1) * on_axis.sum()
     kind = max(parts, key=parts.get)
-    if kind == "wheel/disc":
-        theta = np.arctan2(fe.xyz[off, 2], fe.xyz[off, 0])
-        n = np.arange(0, 5)
-        amp = [abs(np.sum(u[off, 1] * np.exp(-1j * m * theta))) for m in n]
-        return f"wheel/disc out-of-plane ({int(n[int(np.argmax(amp))])} nodal diameters)"
+    if kind == "wheel/disc out-of-plane":
+        return f"{kind} ({int(np.argmax(harmonics))} nodal diameters)"
     return kind
 
 
@@ -291,7 +306,7 @@ def _table(test: ModeSet, fe: FEModes, pairs, unpaired_test, unpaired_fe) -> pd.
                 "zeta": test.zeta[p.test_index],
                 "mac": p.mac,
                 "setup": test.setup[p.test_index],
-                "description": describe_fe_mode(fe, p.fe_indices[0]),
+                "description": describe_fe_mode(fe, p.fe_shape),
             }
         )
     for i in unpaired_test:

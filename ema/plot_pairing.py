@@ -6,7 +6,6 @@ graphical is imported at module import.
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
@@ -51,33 +50,42 @@ def plot_mac(pairing: Pairing, test: ModeSet, fe: FEModes, ax=None):
     return fig
 
 
-def _pyvista():
-    if not os.environ.get("DISPLAY"):
-        os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
-    import pyvista as pv
+def _shape_mesh(fe: FEModes, shape: np.ndarray, amplitude: float):
+    """The FE mesh deformed by an arbitrary shape (e.g. a combination of a degenerate pair)."""
+    from fem_import.plot import mesh_polydata
 
-    pv.OFF_SCREEN = True
-    return pv
+    one = FEModes(fe.node_ids, fe.xyz, fe.elements, np.array([1.0]), np.asarray(shape)[None], np.ones(1),
+                  source=fe.source)
+    peak = np.max(np.linalg.norm(np.asarray(shape)[:, :3], axis=1))
+    return mesh_polydata(one, 0, amplitude / peak if peak > 0 else 0.0)
 
 
-def _fe_polydata(pv, fe: FEModes, shape: np.ndarray, amplitude: float):
-    u = shape[:, :3]
-    peak = np.max(np.linalg.norm(u, axis=1))
-    pts = fe.xyz + (amplitude / peak if peak > 0 else 0.0) * u
-    faces, lines = [], []
-    row = {int(n): i for i, n in enumerate(fe.node_ids)}
-    for e in fe.elements:
-        idx = [row[n] for n in e.nodes if n in row]
-        if len(idx) != len(e.nodes):
+def _sensor_lines(ch, points: np.ndarray, ok: np.ndarray) -> list[list[int]]:
+    """Polylines through the sensors of each body (channel-name prefix), as in a test-geometry wireframe.
+
+    Sensors spread along the axle are joined in y order; sensors around a
+    wheel or disc are joined around the circumference (closed).
+    """
+    import re
+
+    groups: dict[str, list[int]] = {}
+    for k, name in enumerate(ch["name"].astype(str)):
+        if ok[k]:
+            groups.setdefault(re.sub(r"[_\d]+$", "", name), []).append(k)
+    lines = []
+    for idx in groups.values():
+        if len(idx) < 3:
             continue
-        if len(idx) in (3, 4) and e.fe_descriptor in (41, 44, 91, 94):
-            faces.append([len(idx), *idx])
-        elif len(idx) == 2:
-            lines.append([2, *idx])
-    mesh = pv.PolyData(pts, faces=np.concatenate(faces) if faces else None,
-                       lines=np.concatenate(lines) if lines else None)
-    mesh.point_data["displacement"] = np.linalg.norm(u, axis=1)
-    return mesh
+        idx = np.array(idx)
+        p = points[idx]
+        radius = np.hypot(p[:, 0], p[:, 2])
+        if np.ptp(p[:, 1]) > np.ptp(radius) + 1e-9:
+            order = idx[np.argsort(p[:, 1])]
+            lines.append(list(order))
+        else:
+            order = idx[np.argsort(np.arctan2(p[:, 2], p[:, 0]))]
+            lines.append(list(order) + [order[0]])
+    return lines
 
 
 def render_pair(test: ModeSet, test_index: int, fe: FEModes, fe_shape: np.ndarray, path, *, title: str = "",
@@ -97,6 +105,8 @@ def render_pair(test: ModeSet, test_index: int, fe: FEModes, fe_shape: np.ndarra
         The FE shape to show (e.g. :attr:`Pair.fe_shape`, the best combination of a degenerate pair).
     path : str or Path
     """
+    from fem_import.plot import _pyvista, mesh_polydata
+
     pv = _pyvista()
     phi = test.shapes[:, test_index]
     ok = np.isfinite(phi)
@@ -111,13 +121,15 @@ def render_pair(test: ModeSet, test_index: int, fe: FEModes, fe_shape: np.ndarra
 
     plotter = pv.Plotter(shape=(1, 2), off_screen=True, window_size=list(window_size))
     plotter.set_background("white")
-    ghost = _fe_polydata(pv, fe, np.zeros((fe.xyz.shape[0], 3)), 0.0)
+    ghost = mesh_polydata(fe)
     plotter.subplot(0, 0)
     plotter.add_mesh(ghost, color="lightgray", opacity=0.15)
     cloud = pv.PolyData(moved[ok])
     cloud.point_data["amplitude"] = np.abs(re[ok])
     plotter.add_mesh(cloud, scalars="amplitude", cmap="viridis", point_size=14, render_points_as_spheres=True,
                      show_scalar_bar=False)
+    for line in _sensor_lines(ch, pos, ok):  # ordered on the undeformed geometry
+        plotter.add_mesh(pv.lines_from_points(moved[line]), color="black", line_width=2)
     arrows = pv.PolyData(pos[ok])
     arrows["vectors"] = scale * re[ok, None] * d[ok]
     plotter.add_mesh(arrows.glyph(orient="vectors", scale=False, factor=0.06), color="tab:red")
@@ -125,8 +137,8 @@ def render_pair(test: ModeSet, test_index: int, fe: FEModes, fe_shape: np.ndarra
                      f"zeta {100 * test.zeta[test_index]:.3f} %", font_size=10, color="black")
     plotter.camera_position = [(3.2, -2.4, 1.6), (0.0, 0.0, 0.0), (0.0, 0.0, 1.0)]
     plotter.subplot(0, 1)
-    mesh = _fe_polydata(pv, fe, fe_shape, amplitude)
-    plotter.add_mesh(mesh, scalars="displacement", cmap="viridis", show_edges=True, edge_color="dimgray",
+    mesh = _shape_mesh(fe, fe_shape, amplitude)
+    plotter.add_mesh(mesh, scalars="magnitude", cmap="viridis", show_edges=True, edge_color="dimgray",
                      show_scalar_bar=False)
     plotter.add_text(title or "FE", font_size=10, color="black")
     plotter.camera_position = [(3.2, -2.4, 1.6), (0.0, 0.0, 0.0), (0.0, 0.0, 1.0)]

@@ -4,6 +4,8 @@
 ``railmodal lab simulate``              write a campaign of one scenario (``--scenario NAME --out DIR``)
 ``railmodal lab scenarios``             list the virtual-lab scenarios
 ``railmodal lab render``                pictures of the design wheelset and its modes
+``railmodal lab identify``              hammer-test files -> identified modes, stabilisation and FRF plots
+``railmodal lab pair``                  identified modes + FE export -> pairing table (thesis Table 3.1) and renders
 """
 
 from __future__ import annotations
@@ -102,6 +104,86 @@ def _cmd_render(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_identify(args: argparse.Namespace) -> int:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    import ema
+    from ema.modes_io import write_modeset
+    from ema.plot import plot_stabilisation, plot_synthesis
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    band = tuple(args.band)
+    t0 = time.perf_counter()
+    step = (lambda msg: None) if args.quiet else _progress
+    step(f"reading {args.hammer}")
+    test = ema.read_hammer(args.hammer, args.channels)
+    step(f"{len(test.hits)} hits x {test.responses.shape[1]} channels at {test.fs:g} Hz; screening hits and "
+         f"estimating H1 in {band[0]:g}-{band[1]:g} Hz")
+    frf = ema.estimate_frf(test, band_hz=band)
+    setup = args.setup or _setup_name(test, Path(args.hammer))
+    step(f"identifying (LSCE to order {args.max_order}, automatic pole selection, LSFD)")
+    result = ema.identify(frf, band_hz=band, max_order=args.max_order, setup=setup)
+    modes = result.modes
+    write_modeset(modes, out)
+    fig = plot_stabilisation(result.diagram, frf=frf)
+    fig.savefig(out / "stabilisation.png", dpi=120)
+    plt.close(fig)
+    fig = plot_synthesis(frf, result.synthesis)
+    fig.savefig(out / "synthesis.png", dpi=120)
+    plt.close(fig)
+    print(f"{len(modes)} modes identified in {setup!r} ({time.perf_counter() - t0:.1f} s):")
+    for f, z, m in zip(modes.freqs_hz, modes.zeta, modes.mpc):
+        print(f"  {f:9.3f} Hz  zeta {100 * z:.4f} %  MPC {m:.3f}")
+    print(f"written: {out / 'modes.csv'}, {out / 'modes.uff'}, {out / 'stabilisation.png'}, {out / 'synthesis.png'}")
+    return 0
+
+
+def _setup_name(test, path: Path) -> str:
+    ch = test.channels
+    if "setup" in ch and ch["setup"].notna().any():
+        return str(ch["setup"].dropna().iloc[0])
+    return path.stem
+
+
+def _cmd_pair(args: argparse.Namespace) -> int:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    import fem_import
+    from ema.merge import merge_setups
+    from ema.modes_io import read_modeset
+    from ema.pairing import pair_modes
+    from ema.plot_pairing import plot_mac, render_pair
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    step = (lambda msg: None) if args.quiet else _progress
+    sets = [read_modeset(d) for d in args.modes]
+    test = merge_setups(sets) if len(sets) > 1 else sets[0]
+    step(f"{len(test)} test modes from {len(sets)} setup(s); reading {args.fem}")
+    fe = fem_import.read(args.fem)
+    pairing = pair_modes(test, fe, threshold=args.mac_min)
+    pairing.to_csv(out / "pairing.csv")
+    fig = plot_mac(pairing, test, fe)
+    fig.savefig(out / "mac.png", dpi=120)
+    plt.close(fig)
+    for k, p in enumerate(pairing.pairs):
+        name = f"pair_{k + 1:02d}_{test.freqs_hz[p.test_index]:.0f}Hz.png"
+        fe_label = "+".join(str(j + 1) for j in p.fe_indices)
+        render_pair(test, p.test_index, fe, p.fe_shape, out / name,
+                    title=f"FE mode {fe_label}: {fe.freqs_hz[p.fe_indices[0]]:.2f} Hz, MAC {p.mac:.3f}")
+        step(f"rendered {name}")
+    print(pairing.table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+    print(f"written: {out / 'pairing.csv'}, {out / 'mac.png'} and {len(pairing.pairs)} renders")
+    return 0
+
+
 def _cmd_demo(args: argparse.Namespace) -> int:
     from lab_data.campaign import simulate
 
@@ -145,6 +227,21 @@ def build_parser() -> argparse.ArgumentParser:
     rd.add_argument("--out", required=True)
     rd.add_argument("--modes", type=int, default=6)
     rd.set_defaults(func=_cmd_render)
+    ident = lab_sub.add_parser("identify", help="identify modes from a hammer-test file")
+    ident.add_argument("--hammer", required=True, help="UFF58 time histories (one dataset per channel per hit)")
+    ident.add_argument("--channels", required=True, help="channel table CSV")
+    ident.add_argument("--band", nargs=2, type=float, default=[10.0, 500.0], metavar=("LOW", "HIGH"))
+    ident.add_argument("--max-order", type=int, default=100)
+    ident.add_argument("--setup", default=None, help="setup name (default: the table's 'setup' column or file name)")
+    ident.add_argument("--out", required=True)
+    ident.set_defaults(func=_cmd_identify)
+    pair = lab_sub.add_parser("pair", help="pair identified modes with an FE export by MAC")
+    pair.add_argument("--modes", required=True, action="append",
+                      help="modes folder written by 'lab identify' (repeat for several setups: they are merged)")
+    pair.add_argument("--fem", required=True, help="FE modes file (UFF 2411/2412/55 or Nastran .pch)")
+    pair.add_argument("--mac-min", type=float, default=0.8)
+    pair.add_argument("--out", required=True)
+    pair.set_defaults(func=_cmd_pair)
     return parser
 
 

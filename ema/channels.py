@@ -1,0 +1,247 @@
+"""The channel table of a hammer test: schema, validation and reading.
+
+A hammer test's channels are described by a table (a CSV file written by the
+lab, one row per channel) with the columns of ``shared/DESIGN.md``:
+
+========== ======== ==============================================================
+column     required meaning
+========== ======== ==============================================================
+node       yes      channel / response node number, as in the UFF58 ``rsp_node``
+name       yes      channel name, e.g. ``axle_01`` (the FRF output label)
+quantity   yes      ``force`` (exactly one row: the hammer) or ``acceleration``
+unit       yes      ``N`` for force, ``m/s^2`` for acceleration (SI only)
+x, y, z    yes      sensor position [m]
+dx, dy, dz yes      unit measuring direction (normalised if within 1e-3 of 1)
+fe_node    no       FE node the sensor is rigidly attached to
+sensitivity no      sensor sensitivity, informational (data are in SI units)
+setup      no       name of the test setup (``flexural``, ``torsional``, ...)
+========== ======== ==============================================================
+
+The validation is modelled on MNE-Python's ``Info``: a bad table raises
+:class:`ChannelTableError` whose message names the file, the row (node) and
+the column, what was found, what is allowed, and what to do about it.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+__all__ = [
+    "ChannelTableError",
+    "REQUIRED_COLUMNS",
+    "OPTIONAL_COLUMNS",
+    "CHANNEL_QUANTITIES",
+    "validate_channels",
+    "read_channels",
+]
+
+log = logging.getLogger("ema")
+
+#: Columns every channel table must have, in canonical order.
+REQUIRED_COLUMNS: tuple[str, ...] = ("node", "name", "quantity", "unit", "x", "y", "z", "dx", "dy", "dz")
+#: Columns a channel table may have.
+OPTIONAL_COLUMNS: tuple[str, ...] = ("fe_node", "sensitivity", "setup")
+#: quantity -> accepted unit spellings (the first is the canonical SI unit).
+CHANNEL_QUANTITIES: dict[str, tuple[str, ...]] = {
+    "force": ("N",),
+    "acceleration": ("m/s^2", "m/s2", "m/s**2", "m/s\u00b2"),
+}
+#: A direction vector whose norm differs from 1 by more than this is rejected
+#: (it is a typo, not a rounding error); within it, it is normalised.
+DIRECTION_NORM_TOL = 1e-3
+
+
+class ChannelTableError(ValueError):
+    """A channel table that does not follow the schema (see :mod:`ema.channels`)."""
+
+
+def _where(source: str) -> str:
+    return f"channel table {source!r}" if source else "channel table"
+
+
+def _row_label(df: pd.DataFrame, i: int) -> str:
+    """'row 3 (node 103)' or 'row 3' if the node is unusable."""
+    node = df["node"].iloc[i] if "node" in df.columns else None
+    try:
+        n = int(node)
+        return f"row {i + 1} (node {n})"
+    except (TypeError, ValueError):
+        return f"row {i + 1}"
+
+
+def validate_channels(df: pd.DataFrame, *, source: str = "") -> pd.DataFrame:
+    """Check a channel table and return a validated, normalised copy.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        The table (see the module docstring for the schema). Not modified.
+    source : str, optional
+        Where the table comes from (a file name), quoted in error messages.
+
+    Returns
+    -------
+    pandas.DataFrame
+        A copy with a fresh ``RangeIndex``, the required columns first (in
+        canonical order) then the optional and any extra columns; ``node``
+        (and ``fe_node``) as ``int64``, ``name``/``quantity``/``unit``/``setup``
+        as ``str`` (units in canonical spelling: ``N``, ``m/s^2``), positions
+        and directions as ``float64`` with every direction of unit length.
+        Row order is kept.
+
+    Raises
+    ------
+    ChannelTableError
+        A required column is missing; a value is missing, non-numeric or not
+        finite; a quantity or unit is not allowed; there is not exactly one
+        force row; a node or name is repeated; a direction is not a unit
+        vector (within 1e-3); ``fe_node`` is not a positive integer or
+        ``sensitivity`` not a positive number. The message names the source,
+        the row and node, and the column.
+    """
+    where = _where(source)
+    if not isinstance(df, pd.DataFrame):
+        raise ChannelTableError(f"{where}: expected a pandas.DataFrame, got {type(df).__name__}")
+    missing = [c for c in REQUIRED_COLUMNS if c not in df.columns]
+    if missing:
+        raise ChannelTableError(
+            f"{where}: missing required column(s) {missing}; a channel table needs columns "
+            f"{list(REQUIRED_COLUMNS)} (optional {list(OPTIONAL_COLUMNS)}). Add them to the CSV header."
+        )
+    if len(df) == 0:
+        raise ChannelTableError(f"{where}: the table has no rows; it needs one force row and at least one channel")
+    out = df.reset_index(drop=True).copy()
+
+    # -- integers: node (required), fe_node (optional)
+    for col in ("node", "fe_node"):
+        if col not in out.columns:
+            continue
+        vals = []
+        for i, v in enumerate(out[col].tolist()):
+            ok = False
+            try:
+                fv = float(v)
+                ok = np.isfinite(fv) and fv == int(fv) and fv > 0
+            except (TypeError, ValueError):
+                ok = False
+            if not ok:
+                raise ChannelTableError(
+                    f"{where}: {_row_label(out, i) if col != 'node' else f'row {i + 1}'}, column {col!r}: "
+                    f"expected a positive integer node number, got {v!r}"
+                    + (". Leave fe_node out of the table if the FE node is unknown." if col == "fe_node" else "")
+                )
+            vals.append(int(fv))
+        out[col] = np.asarray(vals, dtype=np.int64)
+
+    # -- strings
+    for col in ("name", "quantity", "unit") + (("setup",) if "setup" in out.columns else ()):
+        vals = []
+        for i, v in enumerate(out[col].tolist()):
+            if v is None or (isinstance(v, float) and np.isnan(v)) or str(v).strip() == "":
+                raise ChannelTableError(f"{where}: {_row_label(out, i)}, column {col!r}: value is missing")
+            vals.append(str(v).strip())
+        out[col] = vals
+
+    # -- quantity and unit
+    for i, (q, u) in enumerate(zip(out["quantity"], out["unit"])):
+        if q not in CHANNEL_QUANTITIES:
+            raise ChannelTableError(
+                f"{where}: {_row_label(out, i)}, column 'quantity': expected one of "
+                f"{sorted(CHANNEL_QUANTITIES)}, got {q!r}"
+            )
+        if u not in CHANNEL_QUANTITIES[q]:
+            raise ChannelTableError(
+                f"{where}: {_row_label(out, i)}, column 'unit': a {q} channel must be in "
+                f"{CHANNEL_QUANTITIES[q][0]!r} (SI), got {u!r}; convert the data to SI units before export"
+            )
+    out["unit"] = [CHANNEL_QUANTITIES[q][0] for q in out["quantity"]]
+    n_force = int((out["quantity"] == "force").sum())
+    if n_force != 1:
+        raise ChannelTableError(
+            f"{where}: expected exactly one row with quantity 'force' (the hammer), found {n_force}"
+            + (f" (nodes {out.loc[out['quantity'] == 'force', 'node'].tolist()})" if n_force else "")
+            + "; single-reference hammer tests have one force channel"
+        )
+    if n_force == len(out):
+        raise ChannelTableError(f"{where}: the table has a force row but no acceleration channel")
+
+    # -- uniqueness
+    for col in ("node", "name"):
+        dup = out[col][out[col].duplicated(keep=False)]
+        if len(dup):
+            rows = [int(i) + 1 for i in dup.index]
+            raise ChannelTableError(
+                f"{where}: column {col!r} must be unique, but {dup.iloc[0]!r} appears in rows {rows}; "
+                f"give every channel its own {col}"
+            )
+
+    # -- floats
+    for col in ("x", "y", "z", "dx", "dy", "dz") + (("sensitivity",) if "sensitivity" in out.columns else ()):
+        vals = pd.to_numeric(out[col], errors="coerce").to_numpy(dtype=float)
+        bad = ~np.isfinite(vals)
+        if col == "sensitivity":
+            bad |= ~(vals > 0)
+        if np.any(bad):
+            i = int(np.flatnonzero(bad)[0])
+            what = "a positive finite number" if col == "sensitivity" else "a finite number"
+            raise ChannelTableError(
+                f"{where}: {_row_label(out, i)}, column {col!r}: expected {what}, got {df[col].iloc[i]!r}"
+            )
+        out[col] = vals
+
+    # -- directions
+    d = out[["dx", "dy", "dz"]].to_numpy(dtype=float)
+    norm = np.linalg.norm(d, axis=1)
+    bad = np.abs(norm - 1.0) > DIRECTION_NORM_TOL
+    if np.any(bad):
+        i = int(np.flatnonzero(bad)[0])
+        raise ChannelTableError(
+            f"{where}: {_row_label(out, i)}, columns ('dx', 'dy', 'dz'): the measuring direction must be a "
+            f"unit vector (norm within {DIRECTION_NORM_TOL:g} of 1), got {tuple(d[i])} with norm {norm[i]:.6g}; "
+            f"check the signs and the sensor orientation"
+        )
+    d = d / norm[:, None]
+    out["dx"], out["dy"], out["dz"] = d[:, 0], d[:, 1], d[:, 2]
+
+    order = list(REQUIRED_COLUMNS) + [c for c in OPTIONAL_COLUMNS if c in out.columns]
+    order += [c for c in out.columns if c not in order]
+    return out[order]
+
+
+def read_channels(csv_path: str | os.PathLike) -> pd.DataFrame:
+    """Read and validate a channel table CSV.
+
+    Parameters
+    ----------
+    csv_path : str or os.PathLike
+        Comma-separated file with a header line (see :mod:`ema.channels`).
+
+    Returns
+    -------
+    pandas.DataFrame
+        The validated table (:func:`validate_channels`).
+
+    Raises
+    ------
+    FileNotFoundError
+        The file does not exist.
+    ChannelTableError
+        The file cannot be parsed as CSV or the table is invalid; the message
+        names the file.
+    """
+    path = Path(os.fspath(csv_path))
+    if not path.is_file():
+        raise FileNotFoundError(f"channel table {str(path)!r} does not exist")
+    try:
+        df = pd.read_csv(path, skipinitialspace=True)
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+        raise ChannelTableError(f"channel table {str(path)!r}: cannot be parsed as CSV ({exc})") from exc
+    df.columns = [str(c).strip() for c in df.columns]
+    table = validate_channels(df, source=str(path))
+    log.debug("read channel table %s: %d channels", path, len(table))
+    return table

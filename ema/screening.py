@@ -1,0 +1,324 @@
+"""Hit screening: which hits of which channels may be averaged into an FRF.
+
+A hit is rejected as a whole when its force is unusable, a channel of a hit
+when only that channel is; every rejection is a :class:`Rejection` with a
+reason from :data:`REASONS` and a human-readable detail, and is logged on the
+``"ema"`` logger at WARNING level. Nothing is silently averaged in: the
+result's ``accepted`` mask is what :func:`ema.estimate_frf` averages.
+
+Checks (thresholds in :class:`ScreeningConfig`):
+
+``double hit`` (whole hit)
+    The force, after the main pulse has returned below ``pulse_level`` x peak,
+    exceeds ``double_hit_level`` x peak again (or did so before the main
+    pulse) — the hammer bounced. The threshold is also at least
+    ``noise_factor`` x the force noise RMS (robust estimate: 1.4826 x the
+    median absolute deviation of the record), so noise never triggers it.
+``force saturated`` (whole hit)
+    The force's extreme value is repeated in at least ``clip_min_samples``
+    samples (flat top at the ADC range).
+``force too weak`` (whole hit)
+    Peak force below ``weak_force_ratio`` x the median peak of the test's
+    hits, or below ``min_force_snr`` x the force noise RMS.
+``clipped`` (one channel of one hit)
+    The channel's extreme value (the largest ``|a|``) is repeated exactly in
+    at least ``clip_min_samples`` samples: an ADC held at its range. The range
+    is not in the file, so only the data decide. The repeated samples need not
+    be consecutive: high-frequency content can leave the rail for a sample
+    and return. A genuine peak is a single sample: with 24-bit converters and
+    sensor noise, two samples equal to the maximum to the last bit are very
+    unlikely (none in the virtual-lab campaigns' ~1400 unclipped records).
+``low coherence`` (one channel, all hits)
+    After averaging the remaining hits, the channel's coherence is below
+    ``min_coherence`` on more than ``max_low_coherence_fraction`` of the band:
+    a loose or broken sensor. Needs at least two accepted hits.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from .estimate import ForceWindow, _spectra, auto_exp_decay, main_pulse
+from .hammer_io import HammerTest
+
+__all__ = ["ScreeningConfig", "Rejection", "Screening", "screen_hits", "REASONS", "flat_extreme_count"]
+
+log = logging.getLogger("ema")
+
+#: The reasons a rejection can have.
+REASONS = ("double hit", "force saturated", "force too weak", "clipped", "low coherence")
+
+
+@dataclass(frozen=True)
+class ScreeningConfig:
+    """Thresholds of :func:`screen_hits` (see :mod:`ema.screening`).
+
+    Parameters
+    ----------
+    pulse_level : float
+        Fraction of the peak force delimiting the main pulse.
+    double_hit_level : float
+        A second excursion above this fraction of the peak force is a double hit.
+    noise_factor : float
+        Thresholds are at least this many force-noise RMS.
+    weak_force_ratio : float
+        A peak force below this fraction of the median peak is too weak.
+    min_force_snr : float
+        A peak force below this many force-noise RMS is too weak.
+    clip_min_samples : int
+        Samples at the extreme value that make a channel (or the force) clipped.
+    min_coherence : float
+        Coherence below this is "low".
+    max_low_coherence_fraction : float
+        A channel with low coherence on more than this fraction of the band is rejected.
+    check_coherence : bool
+        Run the coherence check.
+    """
+
+    pulse_level: float = 0.05
+    double_hit_level: float = 0.10
+    noise_factor: float = 10.0
+    weak_force_ratio: float = 0.2
+    min_force_snr: float = 100.0
+    clip_min_samples: int = 2
+    min_coherence: float = 0.8
+    max_low_coherence_fraction: float = 0.5
+    check_coherence: bool = True
+
+    def __post_init__(self) -> None:
+        for name in ("pulse_level", "double_hit_level", "weak_force_ratio", "min_coherence",
+                     "max_low_coherence_fraction"):
+            v = getattr(self, name)
+            if not 0 <= v <= 1:
+                raise ValueError(f"ScreeningConfig.{name} must be in [0, 1], got {v!r}")
+        if not self.double_hit_level > self.pulse_level:
+            raise ValueError(
+                f"ScreeningConfig.double_hit_level ({self.double_hit_level}) must exceed pulse_level "
+                f"({self.pulse_level})"
+            )
+        if not (self.noise_factor >= 0 and self.min_force_snr >= 0):
+            raise ValueError("ScreeningConfig.noise_factor and min_force_snr must be >= 0")
+        if int(self.clip_min_samples) != self.clip_min_samples or self.clip_min_samples < 2:
+            raise ValueError(f"ScreeningConfig.clip_min_samples must be an integer >= 2, got {self.clip_min_samples!r}")
+
+
+@dataclass(frozen=True)
+class Rejection:
+    """One rejected hit, channel of a hit, or channel.
+
+    Parameters
+    ----------
+    hit : int or None
+        Hit number; None for a channel rejected in every hit (low coherence).
+    channel : str or None
+        Channel name; None when the whole hit is rejected.
+    node : int or None
+        The channel's node (None with ``channel``).
+    reason : str
+        One of :data:`REASONS`.
+    detail : str
+        What was measured, in words and numbers.
+    """
+
+    hit: int | None
+    channel: str | None
+    node: int | None
+    reason: str
+    detail: str
+
+    def __str__(self) -> str:
+        what = f"hit {self.hit}" if self.channel is None else (
+            f"channel {self.channel!r} (node {self.node})" + ("" if self.hit is None else f" in hit {self.hit}")
+            + (" in every hit" if self.hit is None else ""))
+        return f"{what} rejected ({self.reason}): {self.detail}"
+
+
+@dataclass(frozen=True, eq=False)
+class Screening:
+    """The outcome of :func:`screen_hits`.
+
+    Parameters
+    ----------
+    hits : tuple of int
+        The test's hit numbers (rows of ``accepted``).
+    channels : tuple of str
+        The test's response channel names (columns of ``accepted``).
+    accepted : ndarray bool (n_hits, n_ch)
+        True where the hit may be averaged into the channel's FRF.
+    rejections : tuple of Rejection
+    config : ScreeningConfig
+    source : str
+    """
+
+    hits: tuple[int, ...]
+    channels: tuple[str, ...]
+    accepted: np.ndarray
+    rejections: tuple[Rejection, ...]
+    config: ScreeningConfig = field(default_factory=ScreeningConfig)
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        acc = np.array(self.accepted, dtype=bool)
+        if acc.shape != (len(self.hits), len(self.channels)):
+            raise ValueError(f"accepted must be ({len(self.hits)}, {len(self.channels)}), got {acc.shape}")
+        acc.setflags(write=False)
+        object.__setattr__(self, "accepted", acc)
+        object.__setattr__(self, "rejections", tuple(self.rejections))
+
+    @property
+    def rejected_hits(self) -> tuple[int, ...]:
+        """Hits rejected as a whole."""
+        return tuple(sorted({r.hit for r in self.rejections if r.channel is None}))
+
+    @property
+    def clipped(self) -> tuple[tuple[int, str], ...]:
+        """(hit, channel) pairs rejected because the channel clipped."""
+        return tuple((r.hit, r.channel) for r in self.rejections if r.reason == "clipped")
+
+    def accepted_hits(self, channel: str) -> tuple[int, ...]:
+        """Hits averaged into ``channel``."""
+        if channel not in self.channels:
+            raise KeyError(f"unknown channel {channel!r}; channels: {list(self.channels)}")
+        j = self.channels.index(channel)
+        return tuple(h for h, a in zip(self.hits, self.accepted[:, j]) if a)
+
+    def to_frame(self) -> pd.DataFrame:
+        """One row per rejection: ``hit, channel, node, reason, detail``."""
+        return pd.DataFrame([r.__dict__ for r in self.rejections], columns=["hit", "channel", "node", "reason", "detail"])
+
+    def __repr__(self) -> str:
+        return (f"Screening({len(self.hits)} hits x {len(self.channels)} channels, "
+                f"{int(self.accepted.sum())} cells accepted, {len(self.rejections)} rejections)")
+
+
+def flat_extreme_count(x: np.ndarray) -> tuple[int, float]:
+    """Samples sitting exactly at the record's extreme value.
+
+    For each rail (the maximum and the minimum) whose magnitude is within
+    0.1 % of ``max |x|``, count the samples equal to it; return the larger
+    count and that value. A genuine peak gives 1; an ADC held at its range
+    gives one per saturated sample.
+    """
+    x = np.asarray(x)
+    hi, lo = float(x.max()), float(x.min())
+    ext = max(abs(hi), abs(lo))
+    best = (0, ext)
+    for v in (hi, lo):
+        if abs(v) >= (1 - 1e-3) * ext:
+            c = int(np.count_nonzero(x == v))
+            if c > best[0]:
+                best = (c, v)
+    return best
+
+
+def _robust_rms(x: np.ndarray) -> float:
+    med = np.median(x)
+    return float(1.4826 * np.median(np.abs(x - med)))
+
+
+def screen_hits(
+    test: HammerTest,
+    *,
+    config: ScreeningConfig | None = None,
+    band_hz: tuple[float, float] = (10.0, 500.0),
+    force_window: ForceWindow | None = ForceWindow(),
+    exp_window_decay: float | None = None,
+) -> Screening:
+    """Screen the hits of a hammer test (see :mod:`ema.screening` for the checks).
+
+    Parameters
+    ----------
+    test : HammerTest
+    config : ScreeningConfig, optional
+        Thresholds; defaults as documented in :class:`ScreeningConfig`.
+    band_hz, force_window, exp_window_decay
+        Band and windows of the coherence check (as in :func:`ema.estimate_frf`).
+
+    Returns
+    -------
+    Screening
+        The accepted hit x channel mask and the rejections, each also logged
+        (logger ``"ema"``, WARNING) with its reason.
+    """
+    cfg = ScreeningConfig() if config is None else config
+    src = test.source or "hammer test"
+    names = test.channel_names
+    nodes = tuple(int(n) for n in test.response_channels["node"])
+    accepted = np.ones((test.n_hits, test.n_channels), bool)
+    rejections: list[Rejection] = []
+
+    def reject(hit, j, reason, detail):
+        r = Rejection(hit, None if j is None else names[j], None if j is None else nodes[j], reason, detail)
+        rejections.append(r)
+        log.warning("screening %s: %s", src, r)
+
+    # ---- force checks (whole hits)
+    peaks = np.empty(test.n_hits)
+    for h, hit in enumerate(test.hits):
+        f = test.force[h]
+        start, ip, end, sign = main_pulse(f, cfg.pulse_level)
+        peaks[h] = abs(f[ip])
+    median_peak = float(np.median(peaks))
+    for h, hit in enumerate(test.hits):
+        f = test.force[h]
+        start, ip, end, sign = main_pulse(f, cfg.pulse_level)
+        peak = peaks[h]
+        noise = _robust_rms(f)
+        reasons = []
+        thr = max(cfg.double_hit_level * peak, cfg.noise_factor * noise)
+        outside = sign * f > thr
+        outside[start:end + 1] = False
+        if outside.any():
+            k = int(np.flatnonzero(outside)[np.argmax((sign * f)[outside])])
+            dt_ms = (k - ip) / test.fs * 1e3
+            reasons.append(("double hit", f"second force pulse of {sign * f[k]:.4g} N ({100 * sign * f[k] / peak:.0f} % "
+                            f"of the {peak:.4g} N peak) {dt_ms:+.2f} ms from the main pulse"))
+        n_flat, v = flat_extreme_count(f)
+        if n_flat >= cfg.clip_min_samples:
+            reasons.append(("force saturated", f"{n_flat} force samples flat at {v:.6g} N"))
+        if peak < cfg.weak_force_ratio * median_peak or peak < cfg.min_force_snr * noise:
+            reasons.append(("force too weak", f"peak {peak:.4g} N vs median peak {median_peak:.4g} N of the hits "
+                            f"(limit {cfg.weak_force_ratio:g} x) and noise RMS {noise:.3g} N (limit "
+                            f"{cfg.min_force_snr:g} x)"))
+        for reason, detail in reasons:
+            reject(hit, None, reason, detail)
+        if reasons:
+            accepted[h] = False
+
+    # ---- channel clipping (per hit and channel)
+    for h, hit in enumerate(test.hits):
+        for j in range(test.n_channels):
+            n_flat, v = flat_extreme_count(test.responses[h, j])
+            if n_flat >= cfg.clip_min_samples:
+                reject(hit, j, "clipped", f"{n_flat} samples flat at {v:.6g} m/s^2, the record's extreme "
+                                          f"(ADC range reached)")
+                accepted[h, j] = False
+
+    # ---- coherence after averaging (per channel)
+    if cfg.check_coherence:
+        usable = accepted.sum(axis=0) >= 2
+        if usable.any():
+            mask = accepted & usable[None, :]
+            decay = (auto_exp_decay(test, accepted=mask, level=cfg.pulse_level)
+                     if exp_window_decay is None else float(exp_window_decay))
+            _, sff, sfa, saa = _spectra(test, mask, band_hz, force_window, decay)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                coh = np.nan_to_num(np.abs(sfa) ** 2 / (sff * saa), nan=0.0)
+            low = (coh < cfg.min_coherence).mean(axis=1)
+            for j in np.flatnonzero(usable & (low > cfg.max_low_coherence_fraction)):
+                reject(None, j, "low coherence",
+                       f"coherence below {cfg.min_coherence:g} on {100 * low[j]:.0f} % of {band_hz[0]:g}-"
+                       f"{band_hz[1]:g} Hz after averaging {int(accepted[:, j].sum())} hits (median "
+                       f"{np.median(coh[j]):.3f})")
+                accepted[:, j] = False
+        for j in np.flatnonzero(~usable & accepted.any(axis=0)):
+            log.info("screening %s: channel %r has only one accepted hit; coherence not checked", src, names[j])
+
+    out = Screening(test.hits, names, accepted, tuple(rejections), cfg, src)
+    log.info("screening %s: %d of %d hit x channel cells accepted, %d rejections", src,
+             int(accepted.sum()), accepted.size, len(rejections))
+    return out

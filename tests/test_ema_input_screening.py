@@ -1,0 +1,213 @@
+"""Hit screening (ema.screen_hits) against the virtual lab's manifest and hand-made faults.
+
+Oracles: truth.json lists the double hit and the clipped (hit, node) of each
+setup; synthetic hits (lab_data.hammer.synthesize_hit on a toy modal model)
+with one fault each show that every check fires on its fault and only there.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import logging
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from ema import HammerTest, Rejection, ScreeningConfig, read_hammer, screen_hits
+from ema.screening import flat_extreme_count
+from lab_data.cache import campaign_dir
+from lab_data.hammer import ModalTruth, Pulse, add_noise, quantise, synthesize_hit
+
+SCENARIOS = [
+    "control",
+    pytest.param("residual", marks=pytest.mark.slow),
+    pytest.param("rig", marks=pytest.mark.slow),
+]
+
+
+@functools.lru_cache(maxsize=2)
+def lab_test(scenario: str, setup: str) -> HammerTest:
+    d = campaign_dir(scenario)
+    return read_hammer(d / f"{setup}.uff", d / f"{setup}_channels.csv")
+
+
+@pytest.mark.parametrize("setup", ["flexural", "torsional"])
+@pytest.mark.parametrize("scenario", SCENARIOS)
+def test_screening_finds_exactly_the_manifest_faults(scenario, setup, caplog):
+    manifest = json.loads((campaign_dir(scenario) / "truth.json").read_text())["setups"][setup]
+    test = lab_test(scenario, setup)
+    with caplog.at_level(logging.WARNING, logger="ema"):
+        scr = screen_hits(test)
+    node_of = dict(zip(test.channel_names, test.response_channels["node"]))
+    found_hits = {(r.hit, r.reason) for r in scr.rejections if r.channel is None}
+    found_cells = {(r.hit, node_of[r.channel], r.reason) for r in scr.rejections if r.channel is not None}
+    assert found_hits == {(h, "double hit") for h in manifest["double_hits"]}
+    assert found_cells == {(c["hit"], c["node"], "clipped") for c in manifest["clipped"]}
+    assert len(scr.rejections) == len(manifest["double_hits"]) + len(manifest["clipped"])
+    # the mask: nothing else is rejected
+    expected = np.ones((6, 29), bool)
+    for h in manifest["double_hits"]:
+        expected[test.hits.index(h)] = False
+    for c in manifest["clipped"]:
+        expected[test.hits.index(c["hit"]), list(test.response_channels["node"]).index(c["node"])] = False
+    np.testing.assert_array_equal(scr.accepted, expected)
+    # every rejection is logged with its reason
+    warn = [r.getMessage() for r in caplog.records if r.name == "ema" and r.levelno == logging.WARNING]
+    for h in manifest["double_hits"]:
+        assert any(f"hit {h} rejected (double hit)" in m for m in warn), warn
+    for c in manifest["clipped"]:
+        assert any(f"(node {c['node']}) in hit {c['hit']} rejected (clipped)" in m for m in warn), warn
+    assert len(warn) == len(scr.rejections)
+
+
+def test_double_hit_detail_matches_the_second_pulse(control_manifest):
+    """The detail reports the bounce's size and delay; compare with the planned pulses."""
+    test = lab_test("control", "flexural")
+    scr = screen_hits(test, config=ScreeningConfig(check_coherence=False))
+    (rej,) = [r for r in scr.rejections if r.reason == "double hit"]
+    hit = next(h for h in control_manifest["setups"]["flexural"]["hits"] if h["double"])
+    p1, p2 = hit["pulses"]
+    ratio = p2["amplitude"] / p1["amplitude"]
+    delay_ms = 1e3 * ((p2["t0"] + p2["width"] / 2) - (p1["t0"] + p1["width"] / 2))
+    pct = float(rej.detail.split("(")[1].split(" %")[0])
+    ms = float(rej.detail.split(" ms")[0].split()[-1])
+    # sampled peaks of 0.35-0.9 ms half-sines at 12.8 kHz: within 10 % of the amplitude ratio, one sample of delay
+    assert pct == pytest.approx(100 * ratio, rel=0.1)
+    assert ms == pytest.approx(delay_ms, abs=1e3 / 12800 + 1e-9)
+
+
+# --------------------------------------------------------------------------
+# synthetic faults
+# --------------------------------------------------------------------------
+FS = 12800.0
+TOY = ModalTruth([0.0, 72.6, 150.0, 410.0], [0.0, 0.002, 0.001, 0.004], [0.03, 0.02, -0.015, 0.01],
+                 np.array([[0.03, 0.025, 0.01, -0.02], [0.03, -0.01, 0.02, 0.015], [0.01, 0.02, 0.03, 0.01]]))
+
+
+def toy_table() -> pd.DataFrame:
+    rows = [dict(node=900, name="hammer", quantity="force", unit="N", x=0, y=0, z=0, dx=0, dy=0, dz=-1)]
+    rows += [dict(node=101 + j, name=f"ch{j}", quantity="acceleration", unit="m/s^2", x=j, y=0, z=0, dx=0, dy=0,
+                  dz=1) for j in range(3)]
+    return pd.DataFrame(rows)
+
+
+def toy_hits(n_hits=5, seed=3, pulses=None, force_noise=0.05, acc_noise=5e-4, ranges=None):
+    """Noisy, 24-bit quantised hits of the toy model; ``pulses[h]`` overrides hit h's pulses."""
+    rng = np.random.default_rng(seed)
+    force, resp = [], []
+    for h in range(n_hits):
+        pl = (pulses or {}).get(h, [Pulse(0.05 + 1e-3 * rng.uniform(), rng.uniform(4e-4, 8e-4),
+                                          rng.uniform(800, 1200))])
+        _, f, a = synthesize_hit(TOY, pl, fs=FS, duration=1.0)
+        f = quantise(add_noise(f, force_noise, rng), 10000.0)[0]
+        a = quantise(add_noise(a, acc_noise, rng), ranges if ranges is not None else 20.0)[0]
+        force.append(f)
+        resp.append(a)
+    return np.array(force), np.array(resp)
+
+
+def test_clean_synthetic_hits_are_all_accepted(caplog):
+    force, resp = toy_hits()
+    test = HammerTest.from_arrays(force, resp, FS, toy_table(), source="toy")
+    with caplog.at_level(logging.WARNING, logger="ema"):
+        scr = screen_hits(test)
+    assert scr.rejections == () and scr.accepted.all()
+    assert not [r for r in caplog.records if r.levelno >= logging.WARNING]
+
+
+def test_noisy_force_is_not_a_double_hit():
+    """Force noise at 1 % of the peak (far worse than a real hammer) must not trigger the 10 % threshold."""
+    force, resp = toy_hits(force_noise=10.0)
+    test = HammerTest.from_arrays(force, resp, FS, toy_table())
+    scr = screen_hits(test, config=ScreeningConfig(check_coherence=False, min_force_snr=0))
+    assert scr.rejections == ()
+    # with the default signal-to-noise floor (peak >= 100 x noise RMS) such a force is too weak, not a double hit
+    scr = screen_hits(test, config=ScreeningConfig(check_coherence=False))
+    assert {r.reason for r in scr.rejections} == {"force too weak"}
+
+
+@pytest.mark.parametrize("second, flagged", [(0.3, True), (0.12, True), (0.07, False)])
+def test_double_hit_threshold(second, flagged, caplog):
+    bounce = {2: [Pulse(0.05, 6e-4, 1000.0), Pulse(0.06, 6e-4, 1000.0 * second)]}
+    force, resp = toy_hits(pulses=bounce)
+    with caplog.at_level(logging.WARNING, logger="ema"):
+        scr = screen_hits(HammerTest.from_arrays(force, resp, FS, toy_table(), source="toy"),
+                          config=ScreeningConfig(check_coherence=False))
+    if flagged:
+        assert [(r.hit, r.channel, r.reason) for r in scr.rejections] == [(3, None, "double hit")]
+        assert not scr.accepted[2].any() and scr.accepted[[0, 1, 3, 4]].all()
+        assert any("toy: hit 3 rejected (double hit)" in r.getMessage() for r in caplog.records)
+    else:
+        assert scr.rejections == ()
+
+
+def test_bounce_before_the_main_pulse_is_a_double_hit():
+    force, resp = toy_hits(pulses={0: [Pulse(0.05, 6e-4, 300.0), Pulse(0.054, 6e-4, 1000.0)]})
+    scr = screen_hits(HammerTest.from_arrays(force, resp, FS, toy_table()), config=ScreeningConfig(check_coherence=False))
+    (rej,) = scr.rejections
+    assert (rej.hit, rej.reason) == (1, "double hit")
+    assert float(rej.detail.split(" ms")[0].split()[-1]) == pytest.approx(-4.0, abs=1e3 / FS)  # 4 ms before
+
+
+def test_weak_and_saturated_force():
+    force, resp = toy_hits()
+    force[1] *= 0.1  # a tap at 10 % of the usual force (the response scales with it)
+    resp[1] *= 0.1
+    peak = np.abs(force[3]).max()
+    force[3] = np.clip(force[3], -0.7 * peak, 0.7 * peak)  # force ADC range reached
+    scr = screen_hits(HammerTest.from_arrays(force, resp, FS, toy_table()), config=ScreeningConfig(check_coherence=False))
+    got = {(r.hit, r.reason) for r in scr.rejections}
+    assert got == {(2, "force too weak"), (4, "force saturated")}
+    assert not scr.accepted[[1, 3]].any() and scr.accepted[[0, 2, 4]].all()
+
+
+def test_clipped_channel_rejects_only_that_cell():
+    force, resp = toy_hits()
+    top = np.abs(resp[2, 1]).max()
+    resp[2, 1] = np.clip(resp[2, 1], -0.8 * top, 0.8 * top)  # negative or positive rail, from the data alone
+    scr = screen_hits(HammerTest.from_arrays(force, resp, FS, toy_table()), config=ScreeningConfig(check_coherence=False))
+    assert [(r.hit, r.channel, r.node, r.reason) for r in scr.rejections] == [(3, "ch1", 102, "clipped")]
+    assert scr.accepted.sum() == 5 * 3 - 1 and not scr.accepted[2, 1]
+    assert scr.accepted_hits("ch1") == (1, 2, 4, 5) and scr.accepted_hits("ch0") == (1, 2, 3, 4, 5)
+    assert scr.clipped == ((3, "ch1"),)
+
+
+def test_genuine_peaks_are_not_clipping():
+    """2000 quantised noisy decaying sines with random phase and frequency: the maximum is one sample."""
+    rng = np.random.default_rng(11)
+    t = np.arange(4096) / FS
+    n_flagged = 0
+    for _ in range(2000):
+        f0 = rng.uniform(20, 600)
+        x = rng.uniform(0.5, 5) * np.exp(-rng.uniform(0.5, 20) * t) * np.sin(2 * np.pi * f0 * t + rng.uniform(0, 6.3))
+        xq = quantise(add_noise(x, 5e-3, rng), 4 * np.abs(x).max())[0].astype(np.float32)
+        n_flagged += flat_extreme_count(xq)[0] >= 2
+    assert n_flagged == 0
+    # the same signals held at a range below their peak are flagged every time
+    x = 3 * np.exp(-5 * t) * np.sin(2 * np.pi * 97.0 * t)
+    for fs_ratio in (0.95, 0.9, 0.5):
+        xq = quantise(x, fs_ratio * 3)[0]
+        assert flat_extreme_count(xq)[0] >= 2
+
+
+def test_low_coherence_channel_is_rejected_in_every_hit(caplog):
+    force, resp = toy_hits()
+    rng = np.random.default_rng(5)
+    resp[:, 2] = 0.05 * rng.standard_normal(resp[:, 2].shape)  # a broken cable: noise only
+    with caplog.at_level(logging.WARNING, logger="ema"):
+        scr = screen_hits(HammerTest.from_arrays(force, resp, FS, toy_table(), source="toy"))
+    (rej,) = scr.rejections
+    assert isinstance(rej, Rejection) and (rej.hit, rej.channel, rej.reason) == (None, "ch2", "low coherence")
+    assert not scr.accepted[:, 2].any() and scr.accepted[:, :2].all()
+    assert any("channel 'ch2' (node 103) in every hit rejected (low coherence)" in r.getMessage()
+               for r in caplog.records)
+    assert scr.to_frame().loc[0, "reason"] == "low coherence"
+
+
+def test_config_validation():
+    with pytest.raises(ValueError, match="double_hit_level"):
+        ScreeningConfig(double_hit_level=0.03, pulse_level=0.05)
+    with pytest.raises(ValueError, match="clip_min_samples"):
+        ScreeningConfig(clip_min_samples=1)
