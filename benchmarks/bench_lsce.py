@@ -115,6 +115,7 @@ def main() -> None:
     print(f"{'':21s} | {'df %':>10s} {'dzeta %':>11s} | {'df %':>10s} {'dzeta %':>11s}"
           + (f" | {'df %':>10s} {'dzeta %':>11s}" if sdy_top is not None else ""))
     worst = {"ours": [0.0, 0.0], "ident": [0.0, 0.0], "sdy": [0.0, 0.0]}
+    errs: dict[str, list] = {"ours": [], "ident": [], "sdy": []}
     for m in modes:
         f, z = m["f_hz"], m["zeta"]
         row = f"{f:12.3f} {z:8.5f} |"
@@ -123,11 +124,16 @@ def main() -> None:
                 continue
             df, dz = _errors(_nearest(np.asarray(poles), f), f, z)
             worst[key] = [max(worst[key][0], abs(df)), max(worst[key][1], abs(dz))]
+            errs[key].append((abs(df), abs(dz)))
             row += f" {df:+10.4f} {dz:+11.3f} |"
         print(row.rstrip("|"))
     print(f"{'worst |error|':>21s} | {worst['ours'][0]:10.4f} {worst['ours'][1]:11.3f} | "
           f"{worst['ident'][0]:10.4f} {worst['ident'][1]:11.3f}"
           + (f" | {worst['sdy'][0]:10.4f} {worst['sdy'][1]:11.3f}" if sdy_top is not None else ""))
+    med = {k: np.median(np.array(v), axis=0) if v else (np.nan, np.nan) for k, v in errs.items()}
+    print(f"{'median |error|':>21s} | {med['ours'][0]:10.4f} {med['ours'][1]:11.3f} | "
+          f"{med['ident'][0]:10.4f} {med['ident'][1]:11.3f}"
+          + (f" | {med['sdy'][0]:10.4f} {med['sdy'][1]:11.3f}" if sdy_top is not None else ""))
     print(f"\nstable poles in the diagram: {int(diagram.stable.sum())} of {len(diagram)}; "
           f"identified modes: {', '.join(f'{x:.2f}' for x in ident.modes.freqs_hz)} Hz")
 

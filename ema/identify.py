@@ -16,14 +16,25 @@
    median pole.  :func:`select_poles_at` is the manual alternative (a list
    of frequencies, nearest stable poles);
 4. :func:`ema.lsfd.refine_poles` — nonlinear least squares of the global SIMO
-   modal model with residual terms (variable projection);
-5. pruning of computational poles: negative or excessive damping, poles that
+   modal model with residual terms (variable projection), after every change
+   of the pole set;
+5. out-of-band pseudo-modes: a pole just above (then below) the band is
+   tried and kept while it is significant and lowers the residual by at
+   least ``min_gain`` — it absorbs modes just outside the band (e.g. the
+   truncated 544/548 Hz modes of the ``residual`` scenario) that the constant
+   residuals cannot follow, and is reported in ``fit.residual_poles``, never
+   as a mode;
+6. pruning of computational poles: negative or excessive damping, poles that
    left the band, duplicates, low modal phase collinearity, and poles whose
    removal does not worsen the FRF synthesis by more than ``significance``
-   times the number of parameters they carry, in units of the estimated noise
-   variance (an information criterion; poles are removed one at a time, least
-   significant first, and the rest re-refined);
-6. :func:`ema.lsfd.lsfd` — residues (modal constants) of every channel, lower
+   times the number of real parameters they carry, in units of the estimated
+   noise variance (an information criterion; poles are removed one at a
+   time, least significant first, and the rest re-refined);
+7. mode splitting: every mode is tried as two close poles (a flexural pair
+   split by a suspension, 0.02 % apart, is one pole in the diagram); a split
+   is kept if both poles stay within the frequency tolerance, are significant
+   and lower the residual by at least ``min_gain``;
+8. :func:`ema.lsfd.lsfd` — residues (modal constants) of every channel, lower
    and upper residuals, MPC/MPD, synthesis error per channel.
 
 Poles, frequencies and damping ratios are physical throughout: the
@@ -43,6 +54,7 @@ import pandas as pd
 from scipy.cluster import hierarchy
 from scipy.spatial.distance import squareform
 
+from ._blas import one_blas_thread
 from .frf import FrequencyResponse
 from .lsce import IdentificationError, PoleSweep, band_lines, lsce
 from .lsfd import DEFAULT_RESIDUALS, LSFDResult, RefinedPoles, lsfd, mcf, refine_poles
@@ -59,6 +71,9 @@ __all__ = [
 ]
 
 log = logging.getLogger("ema")
+
+#: Evaluation budget of a trial (pseudo-mode or split) optimisation with few free poles.
+_TRIAL_NFEV = 30
 
 
 @dataclass(frozen=True, eq=False)
@@ -119,7 +134,11 @@ class Identification:
     rejected : tuple of RejectedPole
         Candidates removed, with the reason.
     diagnostics : pandas.DataFrame
-        One row per mode: ``f_hz, zeta, f_std_hz, zeta_std, mpc, mpd, mcf, significance, support``.
+        One row per mode: ``f_hz, zeta``; ``f_std_hz, zeta_std`` (one-sigma
+        Gauss–Newton uncertainties); ``mpc, mpd, mcf`` (phase collinearity,
+        mean phase deviation [deg], complexity factor); ``significance``
+        (increase of the residual, in noise variances, if the mode is
+        removed); ``support`` (fraction of LSCE orders its cluster spans).
     timings : dict
         Wall time [s] of each stage.
     """
@@ -291,6 +310,7 @@ class _Fit:
     extra: np.ndarray
     support: np.ndarray
     refined: RefinedPoles | None = None
+    split_born: np.ndarray | None = None  # bool per mode: created by a mode split
 
 
 def _refit(frf, st: _Fit, band, residuals, refine, max_nfev) -> None:
@@ -303,6 +323,16 @@ def _refit(frf, st: _Fit, band, residuals, refine, max_nfev) -> None:
 
 def _pole_sane(p: complex) -> bool:
     return bool(np.isfinite(p) and p.real < 0 and p.imag > 0)
+
+
+def _n_good(poles: np.ndarray, band) -> int:
+    return sum(_pole_sane(p) and band[0] <= p.imag / (2 * np.pi) <= band[1] for p in poles)
+
+
+def _out_of_band(p: complex, band) -> bool:
+    """A pseudo-mode pole: stable, damping below 0.5, below the band or above it (up to ten times its upper edge)."""
+    fd = p.imag / (2 * np.pi)
+    return bool(_pole_sane(p) and -p.real < 0.5 * abs(p) and (0 < fd < band[0] or band[1] < fd < 10 * band[1]))
 
 
 def _search_residual_poles(frf, st: _Fit, *, band, residuals, significance, min_gain, n_par, max_per_side,
@@ -329,9 +359,13 @@ def _search_residual_poles(frf, st: _Fit, *, band, residuals, significance, min_
             free[-1] = True
             trial = refine_poles(
                 frf, st.modes, band_hz=band, residuals=residuals, residual_poles=np.append(st.extra, init),
-                free=free, max_nfev=max_nfev,
+                free=free, max_nfev=min(max_nfev, _TRIAL_NFEV),
             )
-            if np.isfinite(trial.residual_poles[-1]) and trial.residual_poles[-1].imag > 0:
+            promising = (
+                np.isfinite(trial.residual_poles[-1]) and trial.residual_poles[-1].imag > 0
+                and 1.0 - trial.cost / base_cost >= min_gain and trial.residual_delta_cost[-1] / n_par >= significance
+            )
+            if promising:
                 # let every pole adapt to the new term (the in-band poles were biased by what it absorbs)
                 trial = refine_poles(
                     frf, trial.poles, band_hz=band, residuals=residuals, residual_poles=trial.residual_poles,
@@ -339,11 +373,13 @@ def _search_residual_poles(frf, st: _Fit, *, band, residuals, significance, min_
                 )
             new = trial.residual_poles[-1]
             fd = new.imag / (2 * np.pi)
-            on_side = fd > hi if side == "upper" else 0 < fd < lo
+            on_side = _out_of_band(new, band)
             sig = trial.residual_delta_cost[-1] / n_par
             gain = 1.0 - trial.cost / base_cost
-            modes_ok = all(_pole_sane(p) and lo <= p.imag / (2 * np.pi) <= hi for p in trial.poles)
-            if _pole_sane(new) and on_side and modes_ok and sig >= significance and gain >= min_gain:
+            # the new term must not cost a mode: count the sane in-band poles before and after
+            modes_ok = _n_good(trial.poles, band) >= _n_good(st.modes, band)
+            extras_ok = all(_out_of_band(p, band) for p in trial.residual_poles)
+            if on_side and extras_ok and modes_ok and sig >= significance and gain >= min_gain:
                 st.modes, st.extra, st.refined = trial.poles, trial.residual_poles, trial
                 log.info("%s residual pole at %.4g Hz (zeta %.3g) added: residual -%.1f%%", side,
                          abs(new) / 2 / np.pi, -new.real / abs(new), 100 * gain)
@@ -353,14 +389,15 @@ def _search_residual_poles(frf, st: _Fit, *, band, residuals, significance, min_
                 break
 
 
-def _search_splits(frf, st: _Fit, *, band, residuals, significance, min_gain, n_par, max_nfev) -> bool:
+def _search_splits(frf, st: _Fit, *, band, residuals, significance, min_gain, n_par, tol_freq, max_nfev) -> bool:
     """Try to split every mode into two close poles; keep a split that is significant and substantial.
 
     Modes closer than the resolution of the stabilisation diagram (e.g. a
     flexural pair split by a suspension, 0.02 % apart) come out of LSCE as one
     pole whose shape mixes both.  For each mode, two poles ``lambda (1 -+ 2e-4)``
     replace it and are optimised (the other poles fixed); the split is kept if
-    both poles stay distinct, stable and in the band, each is significant
+    both poles stay distinct, stable and within ``tol_freq`` of the original
+    frequency (a pole that runs off to another frequency is not a split), each is significant
     (``significance`` noise variances per parameter) and the pair lowers the
     residual by at least ``min_gain``.  Returns True if any split was kept.
     """
@@ -374,11 +411,12 @@ def _search_splits(frf, st: _Fit, *, band, residuals, significance, min_gain, n_
         free = np.zeros(modes.size + st.extra.size, bool)
         free[[k, k + 1]] = True
         trial = refine_poles(frf, modes, band_hz=band, residuals=residuals, residual_poles=st.extra, free=free,
-                             max_nfev=max_nfev)
+                             max_nfev=min(max_nfev, _TRIAL_NFEV))
         a, b = trial.poles[k], trial.poles[k + 1]
         ok = (
             _pole_sane(a) and _pole_sane(b)
             and all(lo <= x.imag / (2 * np.pi) <= hi for x in (a, b))
+            and all(abs(abs(x) - abs(p)) <= tol_freq * abs(p) for x in (a, b))
             and abs(a - b) > 1e-6 * abs(p)
             and min(trial.delta_cost[k], trial.delta_cost[k + 1]) / n_par >= significance
             and 1.0 - trial.cost / base >= min_gain
@@ -388,6 +426,7 @@ def _search_splits(frf, st: _Fit, *, band, residuals, significance, min_gain, n_
                      abs(a) / 2 / np.pi, abs(b) / 2 / np.pi, 100 * (1.0 - trial.cost / base))
             st.modes = trial.poles
             st.support = np.concatenate([st.support[:k], [st.support[k]] * 2, st.support[k + 1:]])
+            st.split_born = np.concatenate([st.split_born[:k], [True, True], st.split_born[k + 1:]])
             st.refined = trial
             changed = True
             k += 2
@@ -407,15 +446,18 @@ def _prune(
     zeta_max: float,
     mpc_min: float,
     significance: float,
+    aux_significance: float,
     residual_poles: int,
     min_gain: float,
     split: bool,
+    tol_freq: float,
     max_nfev: int,
 ) -> tuple[_Fit, list[RejectedPole]]:
     rejected: list[RejectedPole] = []
     lo, hi = band
     n_par = 2 * frf.n_out + 2  # real parameters a mode carries (complex residues + pole)
-    st = _Fit(modes=np.asarray(poles, complex), extra=np.zeros(0, complex), support=np.asarray(support, float))
+    st = _Fit(modes=np.asarray(poles, complex), extra=np.zeros(0, complex), support=np.asarray(support, float),
+              split_born=np.zeros(np.size(poles), bool))
     searched = not (refine and residual_poles > 0)
     split_done = not (refine and split)
     for _ in range(4 * max(poles.size, 1) + 8):
@@ -439,24 +481,28 @@ def _prune(
                 drop = b_ if st.support[b_] <= st.support[a_] else a_
                 bad[drop], reason[drop] = True, "duplicate of another pole"
         # residual poles that wandered into the band or became unstable are dropped
-        ex_ok = np.array([_pole_sane(p) and not lo <= p.imag / (2 * np.pi) <= hi for p in st.extra], bool)
+        ex_ok = np.array([_pole_sane(p) and _out_of_band(p, band) for p in st.extra], bool)
         if not ex_ok.all():
             for p in st.extra[~ex_ok]:
-                rejected.append(RejectedPole(float(abs(p) / 2 / np.pi), float(-p.real / abs(p)), "residual pole left the out-of-band region"))
+                rejected.append(RejectedPole(float(abs(p) / 2 / np.pi), float(-p.real / abs(p)),
+                                             "residual pole left the out-of-band region"))
             st.extra = st.extra[ex_ok]
             if not bad.any():
                 continue
-        if not bad.any() and not searched:
+        if not searched and all(np.isfinite(p) and p.imag > 0 for p in st.modes):
+            # first pass: out-of-band terms before judging the modes they bias
             searched = True
             n_before = st.extra.size
-            _search_residual_poles(frf, st, band=band, residuals=residuals, significance=significance,
+            _search_residual_poles(frf, st, band=band, residuals=residuals, significance=aux_significance,
                                    min_gain=min_gain, n_par=n_par, max_per_side=residual_poles,
                                    max_nfev=max_nfev)
             if st.extra.size > n_before:
                 continue
         if not bad.any() and new.size:
             fit = lsfd(frf, new, band_hz=band, residuals=residuals, residual_poles=st.extra)
-            low = fit.mpc < mpc_min
+            # poles from an accepted split are exempt: two poles 0.01 % apart have ill-determined,
+            # correlated residues (low MPC) although both are significant
+            low = (fit.mpc < mpc_min) & ~st.split_born
             if low.any():
                 i = int(np.argmin(np.where(low, fit.mpc, np.inf)))
                 bad[i], reason[i] = True, f"MPC {fit.mpc[i]:.2f} below {mpc_min:g}"
@@ -470,8 +516,8 @@ def _prune(
                 )
         if not bad.any() and not split_done:
             split_done = True
-            if _search_splits(frf, st, band=band, residuals=residuals, significance=significance, min_gain=min_gain,
-                              n_par=n_par, max_nfev=max_nfev):
+            if _search_splits(frf, st, band=band, residuals=residuals, significance=aux_significance, min_gain=min_gain,
+                              n_par=n_par, tol_freq=tol_freq, max_nfev=max_nfev):
                 continue
         if not bad.any():
             return st, rejected
@@ -479,8 +525,9 @@ def _prune(
             rejected.append(RejectedPole(float(fn[i]), float(zn[i]), reason[i]))
             log.info("rejected pole %.4f Hz (zeta %.3g): %s", fn[i], zn[i], reason[i])
         keep = ~bad
-        init = np.where([_pole_sane(p) for p in new[keep]], new[keep], poles[keep] if poles.size == new.size else new[keep])
-        st.modes, st.support = init, st.support[keep]
+        fallback = poles[keep] if poles.size == new.size else new[keep]
+        init = np.where([_pole_sane(p) for p in new[keep]], new[keep], fallback)
+        st.modes, st.support, st.split_born = init, st.support[keep], st.split_born[keep]
         poles = st.modes
     log.warning("pole pruning did not settle; returning the current poles")
     return st, rejected
@@ -505,6 +552,7 @@ def _channels_for(frf: FrequencyResponse) -> pd.DataFrame:
     )
 
 
+@one_blas_thread
 def identify(
     frf: FrequencyResponse,
     band_hz: tuple[float, float] | None = (10.0, 500.0),
@@ -543,6 +591,10 @@ def identify(
     freqs_hz : sequence of float, optional
         Manual selection: approximate frequencies of the wanted modes
         (:func:`select_poles_at`); default automatic (:func:`select_poles`).
+        The selected modes are kept unless unphysical (no significance/MPC
+        pruning, no splits).  Select every mode of the band (or narrow the
+        band): a mode left out of the model biases the refined poles of its
+        neighbours.
     min_fraction : float
         Automatic selection: minimum fraction of orders a pole cluster must span.
     tol_freq, tol_damping, tol_mac : float
@@ -629,8 +681,9 @@ def identify(
     t0 = time.perf_counter()
     st, rejected = _prune(
         sub, poles0, support, band=band, residuals=tuple(residuals), refine=refine, zeta_max=zeta_max,
-        mpc_min=mpcm, significance=sig, residual_poles=residual_poles, min_gain=min_gain,
-        split=split and freqs_hz is None, max_nfev=max_nfev,
+        mpc_min=mpcm, significance=sig, aux_significance=significance, residual_poles=residual_poles,
+        min_gain=min_gain,
+        split=split and freqs_hz is None, tol_freq=tol_freq, max_nfev=max_nfev,
     )
     poles, support, refined = st.modes, st.support, st.refined
     order = np.argsort(np.abs(poles))

@@ -62,6 +62,7 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 from scipy.linalg import solve_triangular
 
+from ._blas import one_blas_thread
 from .frf import FrequencyResponse
 
 __all__ = ["PoleSweep", "lsce", "zoom_impulse_response", "band_lines", "IdentificationError"]
@@ -186,6 +187,7 @@ class PoleSweep:
         return self.poles_windowed[i] + self.exp_window_decay
 
 
+@one_blas_thread
 def lsce(
     frf: FrequencyResponse,
     *,

@@ -67,6 +67,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ._blas import one_blas_thread
 from .frf import QUANTITIES, FrequencyResponse
 from .lsce import IdentificationError, band_lines
 
@@ -349,6 +350,7 @@ def _solve_linear(phi_c: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndar
     return X, B - A @ X
 
 
+@one_blas_thread
 def lsfd(
     frf: FrequencyResponse,
     poles: np.ndarray,
@@ -532,7 +534,8 @@ class _VarPro:
         return -Dr.reshape(2 * s.size, 2 * m, self.n_out).transpose(1, 0, 2).reshape(2 * m, -1)
 
 
-def _lm(vp: _VarPro, theta0: np.ndarray, max_iter: int, xtol: float = 1e-10, ftol: float = 1e-13) -> tuple[np.ndarray, int]:
+def _lm(vp: _VarPro, theta0: np.ndarray, max_iter: int, xtol: float = 1e-10,
+        ftol: float = 1e-13) -> tuple[np.ndarray, int]:
     """Levenberg–Marquardt (Marquardt's diagonal scaling, Nielsen's damping update) on the projected residual."""
     if theta0.size == 0:
         return theta0, 0
@@ -577,6 +580,7 @@ def _lm(vp: _VarPro, theta0: np.ndarray, max_iter: int, xtol: float = 1e-10, fto
     return theta, n_eval
 
 
+@one_blas_thread
 def refine_poles(
     frf: FrequencyResponse,
     poles: np.ndarray,
@@ -643,6 +647,8 @@ def refine_poles(
         theta, nfev = _lm(vp, theta0, max_nfev)
     else:
         theta, nfev = theta0, 0
+    # the model holds each pole with its conjugate: a pole that crossed to the lower half plane is its conjugate
+    theta = np.concatenate([theta[:m], np.abs(theta[m:])])
     r = vp.fun(theta)
     cost = float(r @ r)
     noise_var = cost / max(n_res - n_par, 1)

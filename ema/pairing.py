@@ -3,7 +3,9 @@
 The FE shapes are evaluated at the test DOFs (sensor positions and measuring
 directions, rigidly attached to their FE nodes), the MAC matrix is formed and
 a one-to-one assignment (Hungarian method, ``scipy.optimize.linear_sum_assignment``)
-maximises the total MAC; pairs below a threshold are not pairs.
+maximises the total MAC less a small penalty on the frequency distance
+(``|ln(f_test / f_fe)|``, so a 10 % distance costs 0.1 of MAC); pairs below a
+MAC threshold are not pairs.
 
 Axisymmetric wheelsets have repeated FE eigenvalues (bending in two planes,
 wheel modes with nodal diameters), which an FE solver exports as arbitrary
@@ -199,6 +201,7 @@ def pair_modes(
     band_hz: tuple[float, float] | None = None,
     degenerate_rtol: float = 1e-4,
     tolerance: float = 0.05,
+    frequency_weight: float = 1.0,
 ) -> Pairing:
     """Pair experimental modes with FE modes by (subspace) MAC and one-to-one assignment.
 
@@ -216,6 +219,9 @@ def pair_modes(
         Relative frequency spread below which FE modes form a degenerate cluster.
     tolerance : float
         Largest sensor-to-FE-node distance accepted when a channel has no ``fe_node`` [m].
+    frequency_weight : float
+        Weight of ``|ln(f_test / f_fe)|`` subtracted from the MAC in the
+        assignment (0 for MAC only); pairs still need ``MAC >= threshold``.
 
     Returns
     -------
@@ -250,11 +256,15 @@ def pair_modes(
     paired_test: set[int] = set()
     used_fe: set[int] = set()
     used_directions: dict[int, list[np.ndarray]] = {}
+    # the assignment maximises MAC minus a frequency-distance penalty: when two test modes look
+    # alike at the sensors (a weak, noisy shape can), the one nearer in frequency is the partner
+    f_cluster = np.array([np.mean(fe.freqs_hz[c]) for c in clusters])
+    score = sub - frequency_weight * np.abs(np.log(test.freqs_hz[:, None] / f_cluster[None, :])) if len(
+        clusters) else sub
     if len(test) and cols:
-        cost = -sub[:, cols]
-        rows, picks = linear_sum_assignment(cost)
+        rows, picks = linear_sum_assignment(-score[:, cols])
         # best matches first: a later test mode may not reuse an FE combination already taken
-        order = sorted(zip(rows, picks), key=lambda ij: -sub[ij[0], cols[ij[1]]])
+        order = sorted(zip(rows, picks), key=lambda ij: -score[ij[0], cols[ij[1]]])
         for i, j in order:
             k = cols[j]
             if sub[i, k] < threshold:

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve
 
+from ._blas import one_blas_thread
 from .frf import FrequencyResponse
 from .lsce import IdentificationError, PoleSweep, band_lines
 
@@ -123,6 +124,7 @@ def _quick_shapes(s: np.ndarray, Y: np.ndarray, poles: np.ndarray) -> np.ndarray
     return (X / scale[:, None])[: poles.size]
 
 
+@one_blas_thread
 def stabilisation_diagram(
     sweep: PoleSweep,
     frf: FrequencyResponse | None = None,

@@ -36,7 +36,7 @@ def manifest(scenario: str) -> dict:
 
 
 @functools.lru_cache(maxsize=None)
-def lab_h1(scenario: str, setup: str, decay: float = 3.0, band: tuple[float, float] = BAND) -> FrequencyResponse:
+def lab_h1(scenario: str, setup: str, decay: float = 2.0, band: tuple[float, float] = BAND) -> FrequencyResponse:
     """Windowed H1 of a lab setup from the raw UFF58 records (independent of ema's reader)."""
     d = campaign_dir(scenario)
     st = manifest(scenario)["setups"][setup]

@@ -48,7 +48,10 @@ def _truth_poles(truth: ModalTruth, band=(10.0, 500.0)):
 # ----------------------------------------------------------------------------- LSCE
 @pytest.mark.parametrize("band", [(10.0, 500.0), (150.0, 500.0), (40.0, 260.0)])
 def test_lsce_zoom_recovers_exact_poles(band):
-    """Noise-free: the zoomed LSCE gives the exact poles (also with a lower band edge > 0, where sdypy-EMA mis-scales)."""
+    """Noise-free: the zoomed LSCE gives the exact poles.
+
+    Also with a lower band edge above 0 Hz, where sdypy-EMA's LSCE mis-scales the frequencies.
+    """
     truth = _toy_truth()
     frf = _frf(truth, decay=2.0, band=band)
     sweep = lsce(frf, max_order=30)
@@ -288,6 +291,26 @@ def test_identify_residual_poles_absorb_mode_above_band():
     assert np.median(plain.fit.error_rel) > 3 * np.median(ident.fit.error_rel)
 
 
+def test_mode_split_resolves_pair_closer_than_the_diagram():
+    """A weak partner 0.017 % above a mode (a flexural pair split by a suspension) is found by the split test."""
+    rng = np.random.default_rng(4)
+    fr = np.array([0.0, 95.0, 192.325, 192.357, 330.0])
+    z = np.array([0.0, 1e-3, 1.29e-3, 1.29e-3, 5e-4])
+    b = np.array([0.3, 0.2, 0.3, 0.01, 0.2])
+    c = rng.normal(0, 0.3, (16, fr.size))
+    truth = ModalTruth(fr, z, b, c)
+    frf = _frf(truth, decay=3.0, noise=1e-4, seed=3)
+    split = ema.identify(frf)
+    plain = ema.identify(frf, split=False)
+    assert len(plain.modes) == 3  # the diagram sees one pole at 192.3 Hz
+    assert len(split.modes) == 4
+    np.testing.assert_allclose(split.modes.freqs_hz, fr[1:], rtol=5e-6)
+    np.testing.assert_allclose(split.modes.zeta, z[1:], rtol=0.01)
+    m = np.diag(mac(split.modes.shapes, c[:, 1:]))
+    assert np.all(m > 0.999)
+    assert mac(plain.modes.shapes[:, 1], c[:, 2])[0, 0] < m[1]
+
+
 def test_stabilisation_flags_and_selection():
     truth = _toy_truth()
     frf = _frf(truth, decay=2.0, noise=1e-4, seed=2)
@@ -313,9 +336,15 @@ def test_stabilisation_flags_and_selection():
 def test_manual_selection_and_errors():
     truth = _toy_truth()
     frf = _frf(truth, decay=2.0, noise=1e-4, seed=5)
-    ident = ema.identify(frf, freqs_hz=[118.0, 305.0])
-    np.testing.assert_allclose(ident.modes.freqs_hz, [118.2, 305.1], rtol=1e-5)
+    # a narrow band holding the close pair 118.2/121.0 Hz: both picked by frequency, then refined
+    ident = ema.identify(frf, band_hz=(100, 140), max_order=30, freqs_hz=[118.0, 121.3])
+    np.testing.assert_allclose(ident.modes.freqs_hz, [118.2, 121.0], rtol=1e-5)
+    np.testing.assert_allclose(ident.modes.zeta, [5e-4, 1e-3], rtol=0.02)
     assert ident.clusters == ()
+    # manual selection of every mode equals the automatic result
+    auto = ema.identify(frf)
+    manual = ema.identify(frf, freqs_hz=auto.modes.freqs_hz * 1.001)
+    np.testing.assert_allclose(manual.modes.poles, auto.modes.poles, rtol=1e-8)
     with pytest.raises(IdentificationError, match="no pole within .* 20 Hz"):
         ema.identify(frf, band_hz=(30, 500), freqs_hz=[20.0])
     with pytest.raises(IdentificationError, match="driving_point"):
