@@ -37,6 +37,7 @@ from scipy.optimize import linear_sum_assignment
 
 from fem_import.modes import FEModes
 
+from .lsfd import mac
 from .modeset import ModeSet
 
 __all__ = ["mac_matrix", "fe_clusters", "Pair", "Pairing", "pair_modes", "fe_shapes_at_dofs", "describe_fe_mode"]
@@ -47,20 +48,20 @@ log = logging.getLogger("ema")
 def mac_matrix(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Modal assurance criterion between the columns of ``a`` (n, p) and ``b`` (n, q).
 
-    ``MAC_ij = |a_i^H b_j|^2 / ((a_i^H a_i)(b_j^H b_j))``; rows where either
-    shape is NaN (a DOF not measured for that mode) are left out of that pair.
+    :func:`ema.lsfd.mac`, except that rows where either shape is NaN (a DOF
+    not measured for that mode, in merged setups) are left out of that pair.
     """
     a = np.asarray(a)
     b = np.asarray(b)
     if a.shape[0] != b.shape[0]:
         raise ValueError(f"shapes must share the DOF axis: {a.shape[0]} vs {b.shape[0]} rows")
+    if np.all(np.isfinite(a)) and np.all(np.isfinite(b)):
+        return mac(a, b)
     out = np.zeros((a.shape[1], b.shape[1]))
     for i in range(a.shape[1]):
         for j in range(b.shape[1]):
             ok = np.isfinite(a[:, i]) & np.isfinite(b[:, j])
-            x, y = a[ok, i], b[ok, j]
-            den = np.vdot(x, x).real * np.vdot(y, y).real
-            out[i, j] = abs(np.vdot(x, y)) ** 2 / den if den > 0 else 0.0
+            out[i, j] = mac(a[ok, i], b[ok, j])[0, 0] if ok.any() else 0.0
     return out
 
 
