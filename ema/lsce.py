@@ -65,7 +65,8 @@ from scipy.linalg import solve_triangular
 from ._blas import one_blas_thread
 from .frf import FrequencyResponse
 
-__all__ = ["PoleSweep", "lsce", "zoom_impulse_response", "band_lines", "IdentificationError"]
+__all__ = ["PoleSweep", "lsce", "zoom_impulse_response", "band_lines", "IdentificationError", "pole_frequency_hz",
+           "pole_damping"]
 
 log = logging.getLogger("ema")
 
@@ -293,3 +294,13 @@ def _solve_upper(R: np.ndarray, b: np.ndarray) -> np.ndarray:
     if d.size and d.min() > 1e-13 * d.max():
         return solve_triangular(R, b, lower=False, check_finite=False)
     return np.linalg.lstsq(R, b, rcond=None)[0]
+
+
+def pole_frequency_hz(poles: np.ndarray) -> np.ndarray:
+    """Undamped natural frequency ``|lambda| / 2 pi`` of continuous-time poles [Hz]."""
+    return np.abs(poles) / (2 * np.pi)
+
+
+def pole_damping(poles: np.ndarray) -> np.ndarray:
+    """Damping ratio ``-Re(lambda) / |lambda|`` of continuous-time poles."""
+    return -np.real(poles) / np.abs(poles)

@@ -69,7 +69,7 @@ import numpy as np
 
 from ._blas import one_blas_thread
 from .frf import QUANTITIES, FrequencyResponse
-from .lsce import IdentificationError, band_lines
+from .lsce import IdentificationError, band_lines, pole_damping, pole_frequency_hz
 
 __all__ = [
     "LSFDResult",
@@ -291,12 +291,12 @@ class LSFDResult:
     @property
     def freqs_hz(self) -> np.ndarray:
         """Undamped natural frequencies ``|lambda| / 2 pi`` [Hz]."""
-        return np.abs(self.poles) / (2 * np.pi)
+        return pole_frequency_hz(self.poles)
 
     @property
     def zeta(self) -> np.ndarray:
         """Damping ratios ``-Re(lambda) / |lambda|``."""
-        return -self.poles.real / np.abs(self.poles)
+        return pole_damping(self.poles)
 
 
 def synthesize(
@@ -468,11 +468,11 @@ class RefinedPoles:
 
     @property
     def freqs_hz(self) -> np.ndarray:
-        return np.abs(self.poles) / (2 * np.pi)
+        return pole_frequency_hz(self.poles)
 
     @property
     def zeta(self) -> np.ndarray:
-        return -self.poles.real / np.abs(self.poles)
+        return pole_damping(self.poles)
 
 
 class _VarPro:

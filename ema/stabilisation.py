@@ -23,7 +23,7 @@ from scipy.linalg import cho_factor, cho_solve
 
 from ._blas import one_blas_thread
 from .frf import FrequencyResponse
-from .lsce import IdentificationError, PoleSweep, band_lines
+from .lsce import IdentificationError, PoleSweep, band_lines, pole_damping, pole_frequency_hz
 
 __all__ = ["StabilisationDiagram", "stabilisation_diagram"]
 
@@ -70,12 +70,12 @@ class StabilisationDiagram:
     @property
     def freqs_hz(self) -> np.ndarray:
         """Undamped natural frequency ``|s| / 2 pi`` of every pole [Hz]."""
-        return np.abs(self.poles) / (2 * np.pi)
+        return pole_frequency_hz(self.poles)
 
     @property
     def zeta(self) -> np.ndarray:
         """Damping ratio ``-Re(s) / |s|`` of every pole (physical, window removed)."""
-        return -self.poles.real / np.abs(self.poles)
+        return pole_damping(self.poles)
 
     @property
     def stable(self) -> np.ndarray:

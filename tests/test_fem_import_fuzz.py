@@ -51,7 +51,7 @@ def alarm(seconds: float):
         signal.signal(signal.SIGALRM, old)
 
 
-def outcome(path, seconds=10.0, **kw):
+def check_outcome(path, seconds=10.0, **kw):
     """Read ``path``: the FEModes, or None for the two accepted errors; anything else propagates."""
     try:
         with alarm(seconds):
@@ -90,7 +90,7 @@ def test_truncation_never_leaks_nor_corrupts(files, kind, data):
     cut = data.draw(st.integers(0, len(raw) - 1), label="cut")
     path = _target(files, f"cut_{kind}.{kind}")
     path.write_bytes(raw[:cut])
-    modes = outcome(path)
+    modes = check_outcome(path)
     if modes is not None:
         k = len(modes)
         # all modes only when the cut fell in the last line (its end of line, or the punch line counter)
@@ -120,8 +120,8 @@ def test_byte_corruption_in_numeric_fields(files, kind, data):
         buf[data.draw(st.sampled_from(positions), label="pos")] = data.draw(REPLACEMENTS, label="byte")
     path = _target(files, f"bad_{kind}.{kind}")
     path.write_bytes(bytes(buf))
-    outcome(path)
-    outcome(path, format="uff" if kind == "uff" else "nastran-punch")
+    check_outcome(path)
+    check_outcome(path, format="uff" if kind == "uff" else "nastran-punch")
 
 
 @pytest.mark.parametrize("kind", ["uff", "pch"])
@@ -141,7 +141,7 @@ def test_line_edits(files, kind, data):
         lines[i], lines[j] = lines[j], lines[i]
     path = _target(files, f"edit_{kind}.{kind}")
     path.write_bytes(b"".join(lines))
-    outcome(path)
+    check_outcome(path)
 
 
 HEADERS = {"uff": b"    -1\n    55\n", "pch": b"$TITLE   = GARBAGE\n$EIGENVECTOR\n$REAL OUTPUT\n"}
@@ -156,7 +156,7 @@ def test_garbage(files, kind, body):
     """Random bytes, alone or behind a header that the sniffers accept (so the reader itself must cope)."""
     path = _target(files, f"junk_{kind}.dat")
     path.write_bytes(HEADERS.get(kind, b"") + body)
-    outcome(path)
+    check_outcome(path)
 
 
 @pytest.mark.parametrize("name", ["fe_design.uff", "fe_design.pch"])
@@ -166,6 +166,6 @@ def test_truncated_real_files(control_dir, tmp_path_factory, name, fraction):
     raw = (control_dir / name).read_bytes()
     path = tmp_path_factory.getbasetemp() / f"cut_{name}"
     path.write_bytes(raw[: int(fraction * len(raw))])
-    modes = outcome(path, seconds=30.0)
+    modes = check_outcome(path, seconds=30.0)
     if modes is not None:  # only if the cut fell exactly between two modes
         assert len(modes) < 25
