@@ -1,4 +1,4 @@
-"""Issue 3 end to end through the toolkit's own chain, on the scenarios the identification tests do not cover.
+"""Issue 3 end to end through the toolkit's own chain, on every scenario.
 
 read_hammer -> screen -> estimate_frf -> identify, per setup, against the
 truth manifest (the acceptance numbers); then merge the two setups and pair
@@ -22,7 +22,7 @@ from lab_data.cache import campaign_dir
 from railmodal.cli import main
 from test_ema_identify_support import match_to_truth
 
-SCENARIOS = ("rig", "joint", "bearing_rig", "absorber")
+SCENARIOS = ("control", "residual", "bearing", "rig", "joint", "bearing_rig", "absorber")
 
 
 def identify_setup(folder, setup):
