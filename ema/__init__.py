@@ -54,3 +54,15 @@ __all__ += [
     "StabilisationDiagram", "stabilisation_diagram",
 ]
 # --- end of identification ---
+
+# --- setups and pairing: merging mode lists, MAC pairing with FE modes, modes folders ---
+from .merge import merge_setups
+from .modes_io import ModesFolderError, read_modeset, write_modeset
+from .pairing import Pair, Pairing, describe_fe_mode, fe_clusters, mac_matrix, pair_modes
+
+__all__ += [
+    "merge_setups",
+    "ModesFolderError", "read_modeset", "write_modeset",
+    "Pair", "Pairing", "describe_fe_mode", "fe_clusters", "mac_matrix", "pair_modes",
+]
+# --- end of setups and pairing ---

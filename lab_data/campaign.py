@@ -35,7 +35,7 @@ from typing import Callable
 
 import numpy as np
 
-from .fe_model import Beam, PointMass, Shell
+from .fe_model import Beam, Modes, PointMass, Shell
 from .hammer import ModalTruth, Pulse, add_noise, quantise, synthesize_hit
 from .mode_labels import mix_clusters
 from .nastran_punch import write_punch_eigenvectors
@@ -170,8 +170,6 @@ def plan_campaign(config: CampaignConfig = CampaignConfig(), params: WheelsetPar
 
 
 def _truncate(s: SolvedModel, keep: np.ndarray) -> SolvedModel:
-    from .fe_model import Modes
-
     m = s.modes
     modes = Modes(m.freqs_hz[keep], m.shapes[keep], m.reduced[:, keep])
     return SolvedModel(s.model, s.system, modes, tuple(l for l, k in zip(s.labels, keep) if k), s.zeta[keep])

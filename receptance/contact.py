@@ -393,8 +393,15 @@ class ContactParameters:
     nu_rail: float = STEEL_NU
 
     def __post_init__(self):
-        # Validate eagerly so a bad parameter set fails where it is built.
-        self.contact()
+        # Validate eagerly so a bad parameter set fails where it is built, naming the field.
+        names = {"static_load_N": "wheel_load_N", "E": "E_wheel", "nu": "nu_wheel"}
+        try:
+            self.contact()
+        except ContactParameterError as err:
+            field = names.get(err.parameter, err.parameter)
+            raise ContactParameterError(
+                f"ContactParameters.{field}", err.value,
+                str(err).split(": expected ", 1)[-1].rsplit(", got ", 1)[0]) from err
 
     def contact(self) -> HertzContact:
         """Hertz solution for these parameters (see :func:`hertz_contact`)."""
