@@ -97,12 +97,15 @@ class ContactParameterError(ValueError):
         Name of the offending parameter.
     value : object
         The value received.
+    expected : str
+        What was expected.
     """
 
     def __init__(self, parameter: str, value, expected: str):
         super().__init__(f"Hertz contact parameter {parameter!r}: expected {expected}, got {value!r}")
         self.parameter = parameter
         self.value = value
+        self.expected = expected
 
 
 # ----------------------------------------------------------------------------- validation
@@ -399,9 +402,7 @@ class ContactParameters:
             self.contact()
         except ContactParameterError as err:
             field = names.get(err.parameter, err.parameter)
-            raise ContactParameterError(
-                f"ContactParameters.{field}", err.value,
-                str(err).split(": expected ", 1)[-1].rsplit(", got ", 1)[0]) from err
+            raise ContactParameterError(f"ContactParameters.{field}", err.value, err.expected) from err
 
     def contact(self) -> HertzContact:
         """Hertz solution for these parameters (see :func:`hertz_contact`)."""

@@ -213,11 +213,11 @@ def test_pressure_reproduces_gap_by_direct_boussinesq_integration(Rwt, Rr):
     if Rwt < 0:
         assert ay > ax
     u = lambda x, y: _boussinesq_displacement(x, y, ax, ay, c.max_pressure, E_STAR)  # noqa: E731
-    assert u(0.0, 0.0) == pytest.approx(c.approach, rel=1e-6)
+    assert u(0.0, 0.0) == pytest.approx(c.approach, rel=1e-9)
     # inside the contact the deformed surfaces conform: u = δ − A x² − B y²
     for fx, fy in [(0.5, 0.0), (0.0, 0.6), (0.4, -0.5), (-0.7, 0.3)]:
         x, y = fx * ax, fy * ay
-        assert u(x, y) == pytest.approx(c.approach - A * x**2 - B * y**2, rel=1e-6)
+        assert u(x, y) == pytest.approx(c.approach - A * x**2 - B * y**2, rel=1e-9)
 
 
 # --------------------------------------------------------------------------- (3) load dependence
@@ -232,7 +232,7 @@ def test_stiffness_is_derivative_of_load_approach_curve():
     N, h = 55e3, 1.0
     d = lambda n: hertz_contact(n, 0.41, -0.8, 0.3).approach  # noqa: E731
     k_fd = 2 * h / (d(N + h) - d(N - h))
-    assert hertz_stiffness(N, 0.41, -0.8, 0.3) == pytest.approx(k_fd, rel=1e-6)
+    assert hertz_stiffness(N, 0.41, -0.8, 0.3) == pytest.approx(k_fd, rel=1e-7)
 
 
 # --------------------------------------------------------------------------- (4) vehicle defaults
