@@ -8,3 +8,14 @@ receptance (§2.4) and the Hertzian contact stiffness, and forms the
 half-wheelset, full vertical and full vertical+lateral transfer functions
 (eqs. 2.6, 2.11, 2.22) that :mod:`estimator` inverts.
 """
+
+# Built so far (issue 4 in progress): contact stiffness and track receptance.
+from .contact import ContactParameters, HertzContact, hertz_compliance, hertz_contact, hertz_stiffness
+from .track import track_frf, track_receptance
+from .trackform import Trackform, TrackformError, load_trackform
+
+__all__ = [
+    "ContactParameters", "HertzContact", "hertz_compliance", "hertz_contact", "hertz_stiffness",
+    "track_frf", "track_receptance",
+    "Trackform", "TrackformError", "load_trackform",
+]
