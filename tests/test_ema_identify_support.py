@@ -125,3 +125,13 @@ def match_to_truth(modes, setup_manifest: dict, band=BAND, f_tol_spurious=0.005)
         if not np.any(np.abs(tf - f) <= f_tol_spurious * f):
             out.spurious.append(float(f))
     return out
+
+
+def assert_acceptance(m: Match, label: str) -> None:
+    """Issue 3's identification acceptance: every observable truth mode found, none spurious,
+    |df|/f <= 0.05 %, |dzeta|/zeta <= 10 % (after the window correction), MAC >= 0.99."""
+    assert not m.missed, f"{label}: observable truth modes not identified: {m.missed}"
+    assert not m.spurious, f"{label}: spurious modes (no truth mode within 0.5 %): {m.spurious}"
+    assert m.worst_df <= 5e-4, f"{label}: |df|/f = {100 * m.worst_df:.5f} %"
+    assert m.worst_dzeta <= 0.10, f"{label}: |dzeta|/zeta = {100 * m.worst_dzeta:.3f} %"
+    assert m.worst_mac >= 0.99, f"{label}: MAC = {m.worst_mac:.6f}"
