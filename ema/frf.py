@@ -27,6 +27,9 @@ QUANTITIES: dict[str, tuple[int, str]] = {
     "receptance": (0, "m/N"),
     "mobility": (1, "m/s/N"),
     "accelerance": (2, "m/s^2/N"),
+    # a ratio of other quantities (e.g. irregularity per axlebox acceleration, thesis eq. 2.6):
+    # no power of i*omega relates it to the others, so it has no conversions; give units explicitly
+    "transfer": (None, ""),
 }
 
 
@@ -154,6 +157,11 @@ class FrequencyResponse:
         """
         if quantity not in QUANTITIES:
             raise ValueError(f"quantity must be one of {sorted(QUANTITIES)}, got {quantity!r}")
+        if QUANTITIES[quantity][0] is None or QUANTITIES[self.quantity][0] is None:
+            if quantity == self.quantity:
+                return self
+            raise ValueError(f"cannot convert {self.quantity} to {quantity}: a 'transfer' response is a ratio of "
+                             f"other quantities and has no conversion")
         p = QUANTITIES[quantity][0] - QUANTITIES[self.quantity][0]
         if p == 0:
             return self

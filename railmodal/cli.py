@@ -6,6 +6,8 @@
 ``railmodal lab render``                pictures of the design wheelset and its modes
 ``railmodal lab identify``              hammer-test files -> identified modes, stabilisation and FRF plots
 ``railmodal lab pair``                  identified modes + FE export -> pairing table (thesis Table 3.1) and renders
+``railmodal model track``               rail point receptances (thesis §2.4) -> track_receptance.csv and plot
+``railmodal model build``               pairing + FE export + points -> hybrid wheelset model, transfer functions
 """
 
 from __future__ import annotations
@@ -15,6 +17,8 @@ import logging
 import sys
 import time
 from pathlib import Path
+
+from railmodal.model_commands import add_model_commands
 
 __all__ = ["main"]
 
@@ -242,6 +246,7 @@ def build_parser() -> argparse.ArgumentParser:
     pair.add_argument("--mac-min", type=float, default=0.8)
     pair.add_argument("--out", required=True)
     pair.set_defaults(func=_cmd_pair)
+    add_model_commands(sub)
     return parser
 
 

@@ -9,13 +9,28 @@ half-wheelset, full vertical and full vertical+lateral transfer functions
 (eqs. 2.6, 2.11, 2.22) that :mod:`estimator` inverts.
 """
 
-# Built so far (issue 4 in progress): contact stiffness and track receptance.
+from .compare import Comparison, compare_frf, frf_errors
 from .contact import ContactParameters, HertzContact, hertz_compliance, hertz_contact, hertz_stiffness
+from .dofs import THESIS_DOFS, Dof, DofError, Point, dofs_from_channels, parse_dof, read_points, shifted_point
+from .hybrid import hybrid_model, read_pairing_table
+from .modal_model import ModalModel, ModelError
+from .model_io import ModelFileError, load_model, save_model
+from .modification import (MODIFICATIONS, GroundSprings, Modification, ModificationError, PointMass,
+                           PrimarySuspension, RigidBody, Spring, Term, register)
+from .pole_residue import PoleResidues
 from .track import track_frf, track_receptance
 from .trackform import Trackform, TrackformError, load_trackform
 
 __all__ = [
+    "Comparison", "compare_frf", "frf_errors",
     "ContactParameters", "HertzContact", "hertz_compliance", "hertz_contact", "hertz_stiffness",
+    "THESIS_DOFS", "Dof", "DofError", "Point", "dofs_from_channels", "parse_dof", "read_points", "shifted_point",
+    "hybrid_model", "read_pairing_table",
+    "ModalModel", "ModelError",
+    "ModelFileError", "load_model", "save_model",
+    "MODIFICATIONS", "GroundSprings", "Modification", "ModificationError", "PointMass", "PrimarySuspension",
+    "RigidBody", "Spring", "Term", "register",
+    "PoleResidues",
     "track_frf", "track_receptance",
     "Trackform", "TrackformError", "load_trackform",
 ]

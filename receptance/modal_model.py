@@ -1,0 +1,424 @@
+"""The wheelset's modal model: FE shapes with chosen frequencies and damping, plus structural modifications.
+
+Thesis §2.3: the receptance between any two DOFs follows from the mode
+shapes, natural frequencies and damping ratios (eqs. 2.23–2.30).  The hybrid
+model of the thesis takes the shapes from FE and the frequencies and damping
+from the test (see :mod:`receptance.hybrid`).  Physical effects the FE lacks
+(primary suspension, rig springs, bearings...) enter as structural
+modifications (:mod:`receptance.modification`) solved in modal coordinates.
+
+Solving.  The model is reduced once to poles and residues
+(:class:`~receptance.pole_residue.PoleResidues`): modal coordinates that no
+modification touches keep their closed-form modal terms; the touched ones
+(and added bodies) form a small system whose unrestrained rigid-body part
+gives a mass line and whose remainder is diagonalised in first-order
+(state-space) form.  Receptances at any set of frequencies are then one
+vectorised evaluation.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field, replace
+from typing import Mapping, Sequence
+
+import numpy as np
+import pandas as pd
+import scipy.linalg
+
+from ema.frf import FrequencyResponse
+from fem_import.modes import FEModes
+from receptance.dofs import Dof, DofError, Point, dofs_from_channels, parse_dof
+from receptance.modification import Modification, RigidBody
+from receptance.pole_residue import PoleResidues
+
+__all__ = ["ModalModel", "ModelError", "ORIGINS"]
+
+log = logging.getLogger("receptance")
+
+#: where a mode's frequency and damping come from
+ORIGINS = ("test", "fe", "rigid")
+_BODY_AXES = {"x": 0, "y": 1, "z": 2, "rx": 3, "ry": 4, "rz": 5}
+_DECOUPLED = 1e-9  # coupling below this fraction of a coordinate's own scale leaves it a plain modal term
+
+
+class ModelError(ValueError):
+    """An inconsistent modal model (names the mode, DOF or parameter)."""
+
+
+@dataclass(frozen=True, eq=False)
+class ModalModel:
+    """Modal model of the wheelset.
+
+    Parameters
+    ----------
+    fe : FEModes
+        Mass-normalised shapes of the kept modes (one FE mode per model mode,
+        same order); ``fe.freqs_hz`` keeps the FE frequencies for reference.
+    freqs_hz : ndarray (m,)
+        Natural frequencies used by the model [Hz] (0 for rigid-body modes).
+    zeta : ndarray (m,)
+        Viscous modal damping ratios.
+    origin : tuple of str
+        ``"test"`` (frequency and damping from the test), ``"fe"`` (FE
+        frequency, default damping) or ``"rigid"``.
+    fe_mode : ndarray of int (m,)
+        1-based number of each mode in the FE export it came from.
+    test_mode : ndarray of float (m,)
+        1-based test mode each mode was paired with (NaN if none).
+    points : dict of str -> Point
+        Named points (contact points, axleboxes, sensors...).
+    modifications : tuple of Modification
+        Applied in order; see :meth:`with_modification`.
+    name : str
+    history : tuple of str
+    """
+
+    fe: FEModes
+    freqs_hz: np.ndarray
+    zeta: np.ndarray
+    origin: tuple[str, ...]
+    fe_mode: np.ndarray
+    test_mode: np.ndarray
+    points: Mapping[str, Point] = field(default_factory=dict)
+    modifications: tuple[Modification, ...] = ()
+    name: str = "hybrid model"
+    history: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        m = len(self.fe)
+        f = np.asarray(self.freqs_hz, float)
+        z = np.asarray(self.zeta, float)
+        for label, arr in (("freqs_hz", f), ("zeta", z), ("fe_mode", self.fe_mode), ("test_mode", self.test_mode)):
+            if np.shape(arr) != (m,):
+                raise ModelError(f"{label} must have one entry per FE mode ({m}), got shape {np.shape(arr)}")
+        if len(self.origin) != m:
+            raise ModelError(f"origin must have {m} entries, got {len(self.origin)}")
+        bad = [o for o in self.origin if o not in ORIGINS]
+        if bad:
+            raise ModelError(f"origin entries must be one of {ORIGINS}, got {sorted(set(bad))}")
+        if np.any(~np.isfinite(f)) or np.any(f < 0):
+            k = int(np.argmax(~np.isfinite(f) | (f < 0)))
+            raise ModelError(f"mode {k + 1}: frequency must be finite and >= 0 Hz, got {f[k]!r}")
+        if np.any(~np.isfinite(z)) or np.any((z < 0) | (z >= 1)):
+            k = int(np.argmax(~np.isfinite(z) | (z < 0) | (z >= 1)))
+            raise ModelError(f"mode {k + 1}: damping ratio must lie in [0, 1), got {z[k]!r}")
+        if not self.fe.has_rotations:
+            log.info("%s: FE shapes without rotations; off-node points and rotational DOFs are unavailable",
+                     self.fe.source or "model")
+        for mod in self.modifications:
+            if not isinstance(mod, Modification):
+                raise ModelError(f"modifications must be Modification instances, got {type(mod).__name__}")
+        object.__setattr__(self, "freqs_hz", f)
+        object.__setattr__(self, "zeta", z)
+        object.__setattr__(self, "origin", tuple(self.origin))
+        object.__setattr__(self, "fe_mode", np.asarray(self.fe_mode, int))
+        object.__setattr__(self, "test_mode", np.asarray(self.test_mode, float))
+        object.__setattr__(self, "points", dict(self.points))
+        object.__setattr__(self, "modifications", tuple(self.modifications))
+        object.__setattr__(self, "history", tuple(self.history))
+
+    # ------------------------------------------------------------------ views
+    def __len__(self) -> int:
+        return self.freqs_hz.size
+
+    @property
+    def table(self) -> pd.DataFrame:
+        """One row per mode: ``fe_mode, f_fe_hz, f_hz, zeta, origin, test_mode``."""
+        return pd.DataFrame({"fe_mode": self.fe_mode, "f_fe_hz": self.fe.freqs_hz, "f_hz": self.freqs_hz,
+                             "zeta": self.zeta, "origin": list(self.origin), "test_mode": self.test_mode})
+
+    @property
+    def bodies(self) -> tuple[RigidBody, ...]:
+        out: list[RigidBody] = []
+        for mod in self.modifications:
+            out.extend(mod.bodies())
+        names = [b.name for b in out]
+        if len(set(names)) != len(names):
+            raise ModelError(f"added bodies must have unique names, got {names}")
+        return tuple(out)
+
+    @property
+    def n_coordinates(self) -> int:
+        """Modal coordinates plus 6 per added rigid body."""
+        return len(self) + 6 * len(self.bodies)
+
+    # ----------------------------------------------------------- new models
+    def with_modification(self, modification: Modification) -> "ModalModel":
+        """A new model with ``modification`` added (the physical effect is solved in modal coordinates)."""
+        if not isinstance(modification, Modification):
+            raise ModelError(f"expected a Modification, got {type(modification).__name__}")
+        return replace(self, modifications=self.modifications + (modification,),
+                       history=self.history + (f"+ {modification.describe()}",))
+
+    def without_modifications(self) -> "ModalModel":
+        """The bare modal model (free-free hybrid model)."""
+        return replace(self, modifications=(), history=self.history + ("modifications removed",))
+
+    def with_modal_parameters(self, freqs_hz=None, zeta=None, *, step: str = "modal parameters changed"
+                              ) -> "ModalModel":
+        """A new model with other frequencies and/or damping ratios (same shapes and modifications)."""
+        f = self.freqs_hz if freqs_hz is None else np.asarray(freqs_hz, float)
+        z = self.zeta if zeta is None else np.asarray(zeta, float)
+        return replace(self, freqs_hz=f, zeta=z, history=self.history + (step,))
+
+    def with_points(self, points: Mapping[str, Point] | Sequence[Point]) -> "ModalModel":
+        """A new model knowing more named points (added to, or replacing, those it has)."""
+        pts = dict(self.points)
+        items = points.values() if isinstance(points, Mapping) else points
+        for p in items:
+            pts[p.name] = p
+        return replace(self, points=pts)
+
+    # ------------------------------------------------------------------ rows
+    def dof(self, spec) -> Dof:
+        """Resolve one DOF specification (see :func:`receptance.dofs.parse_dof`)."""
+        if isinstance(spec, str) and ":" in spec:
+            body = self._body(spec.split(":", 1)[0])
+            if body is not None:
+                return parse_dof(spec, {body.name: Point(body.name, None, body.centre)})
+        return parse_dof(spec, self.points)
+
+    def rows(self, specs) -> np.ndarray:
+        """Rows ``(n, n_coordinates)`` mapping the model's coordinates to the physical DOFs ``specs``.
+
+        For a point attached to FE node ``n`` with offset ``r`` the row is
+        ``d · (u_n + θ_n × r)`` per mode (a rigid link, as sensors are
+        mounted); for a rotational DOF ``d · θ_n``.  Points attached to a node
+        that an added rigid body carries move with that body.
+        """
+        if isinstance(specs, (str, Dof, int, np.integer)):
+            specs = [specs]
+        dofs = [self.dof(s) for s in specs]
+        return self._rows_of(dofs)
+
+    def _body(self, name: str) -> RigidBody | None:
+        for b in self.bodies:
+            if b.name == name:
+                return b
+        return None
+
+    def _rows_of(self, dofs: Sequence[Dof]) -> np.ndarray:
+        bodies = self.bodies
+        m = len(self)
+        T = np.zeros((len(dofs), m + 6 * len(bodies)))
+        carried = {int(n): k for k, b in enumerate(bodies) for n in b.carries}
+        for i, dof in enumerate(dofs):
+            d = np.asarray(dof.direction)
+            k_body = next((k for k, b in enumerate(bodies) if b.name == dof.point.name), None)
+            if k_body is None and dof.point.fe_node is not None and dof.point.fe_node in carried:
+                k_body = carried[dof.point.fe_node]
+            if k_body is not None:
+                b = bodies[k_body]
+                p = self._position(dof.point)
+                r = p - np.asarray(b.centre)
+                row = np.concatenate([np.zeros(3), d]) if dof.rotation else np.concatenate([d, np.cross(r, d)])
+                T[i, m + 6 * k_body: m + 6 * k_body + 6] = row
+                continue
+            T[i, :m] = self._fe_row(dof)
+        return T
+
+    def _position(self, point: Point) -> np.ndarray:
+        if point.xyz is not None:
+            return np.asarray(point.xyz, float)
+        return self.fe.xyz[self.fe.index(point.fe_node)]
+
+    def _fe_row(self, dof: Dof) -> np.ndarray:
+        pt = dof.point
+        if dof.rotation:
+            if not self.fe.has_rotations:
+                raise DofError(f"DOF {dof.label!r}: the FE shapes have no rotations ({self.fe.source})")
+            node = pt.fe_node if pt.fe_node is not None else self.fe.nearest_node(pt.xyz, name=pt.name)
+            return self.fe.shapes[:, self.fe.index(node), 3:] @ np.asarray(dof.direction)
+        pos = None if pt.xyz is None else [pt.xyz]
+        return self.fe.at_points([pt.fe_node], pos, [dof.direction], names=[dof.label])[0]
+
+    # ---------------------------------------------------------------- solving
+    def system(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Mass, damping and stiffness matrices in the model's coordinates (eq. 2.29 plus modifications)."""
+        m = len(self)
+        n = self.n_coordinates
+        w = 2 * np.pi * self.freqs_hz
+        M = np.zeros((n, n))
+        C = np.zeros((n, n))
+        K = np.zeros((n, n), complex)
+        M[:m, :m] = np.eye(m)
+        C[:m, :m] = np.diag(2 * self.zeta * w)
+        K[:m, :m] = np.diag(w**2)
+        for k, b in enumerate(self.bodies):
+            M[m + 6 * k: m + 6 * k + 6, m + 6 * k: m + 6 * k + 6] = b.mass_matrix()
+        for mod in self.modifications:
+            for t in mod.terms(self.rows):
+                T = np.asarray(t.rows, float)
+                if T.ndim != 2 or T.shape[1] != n:
+                    raise ModelError(f"{mod.kind}: term rows must have shape (n, {n}), got {T.shape}")
+                for name, add, target in (("M", t.M, M), ("C", t.C, C), ("K", t.K, K)):
+                    if add is None:
+                        continue
+                    add = np.asarray(add)
+                    if add.shape != (T.shape[0],) * 2:
+                        raise ModelError(f"{mod.kind}: {name} must be {T.shape[0]}x{T.shape[0]}, got {add.shape}")
+                    contrib = T.T @ add @ T
+                    if target is K:
+                        K += contrib
+                    else:
+                        if np.iscomplexobj(contrib) and np.any(contrib.imag):
+                            raise ModelError(f"{mod.kind}: {name} must be real")
+                        target += contrib.real
+        if not np.any(K.imag):
+            K = K.real
+        return M, C, K
+
+    def pole_residues(self, outputs, inputs=None) -> PoleResidues:
+        """Poles and residues of the receptance from ``inputs`` to ``outputs`` (eqs. 2.28–2.30 solved once).
+
+        Parameters
+        ----------
+        outputs, inputs : sequence of DOF specs
+            Names (``"contact_L:z"``), thesis numbers 1–12, :class:`Dof`
+            objects (e.g. from :func:`~receptance.dofs.dofs_from_channels`).
+            ``inputs`` defaults to ``outputs``.
+
+        Returns
+        -------
+        PoleResidues
+        """
+        out_dofs = [self.dof(s) for s in (outputs if not isinstance(outputs, (str, Dof, int)) else [outputs])]
+        in_specs = outputs if inputs is None else inputs
+        in_dofs = [self.dof(s) for s in (in_specs if not isinstance(in_specs, (str, Dof, int)) else [in_specs])]
+        To, Ti = self._rows_of(out_dofs), self._rows_of(in_dofs)
+        labels_o, labels_i = tuple(d.label for d in out_dofs), tuple(d.label for d in in_dofs)
+        M, C, K = self.system()
+        m = len(self)
+        n = M.shape[0]
+        # a modal coordinate no modification couples stays a closed-form modal term (exact, and keeps
+        # repeated eigenvalues such as degenerate bending pairs out of the state-space eigensolver)
+        w = 2 * np.pi * self.freqs_hz
+        dM, dC, dK = M.copy(), C.copy(), K.copy()
+        dM[:m, :m] -= np.eye(m)
+        dC[:m, :m] -= np.diag(2 * self.zeta * w)
+        dK[:m, :m] -= np.diag(w**2)
+        scale = np.ones(n)
+        scale[:m] = np.maximum(w**2, 1.0)
+        touched = ((np.abs(dK).max(axis=1, initial=0) > _DECOUPLED * scale)
+                   | (np.abs(dC).max(axis=1, initial=0) > _DECOUPLED * np.sqrt(scale))
+                   | (np.abs(dM).max(axis=1, initial=0) > _DECOUPLED))
+        touched[m:] = True
+        free = np.flatnonzero(~touched)
+        pr = PoleResidues.from_modes(self.freqs_hz[free], self.zeta[free], To[:, free], Ti[:, free], labels_o,
+                                     labels_i)
+        sel = np.flatnonzero(touched)
+        if sel.size == 0:
+            return replace(pr, history=(f"{self.name}: modal sum of {len(self)} modes",))
+        poles, residues, mass_line = _solve_coupled(M[np.ix_(sel, sel)], C[np.ix_(sel, sel)], K[np.ix_(sel, sel)],
+                                                    To[:, sel], Ti[:, sel])
+        return PoleResidues(np.concatenate([pr.poles, poles]), np.concatenate([pr.residues, residues], axis=2),
+                            pr.mass_line + mass_line, labels_o, labels_i,
+                            history=(f"{self.name}: {free.size} modal terms + {sel.size} coupled coordinates "
+                                     f"({len(self.modifications)} modification(s))",))
+
+    # ------------------------------------------------------------- responses
+    def receptance(self, outputs, inputs=None, freqs_hz=None, *, quantity: str = "receptance",
+                   decay: float = 0.0) -> FrequencyResponse:
+        """Receptance (or mobility, accelerance) between named DOFs, vectorised over frequency.
+
+        Parameters
+        ----------
+        outputs, inputs : DOF specs
+            See :meth:`pole_residues`; ``inputs`` defaults to ``outputs``.
+        freqs_hz : array_like
+            Frequency axis [Hz].
+        quantity : {"receptance", "mobility", "accelerance"}
+        decay : float, optional
+            Exponential-window decay [1/s] of a measurement to compare with.
+        """
+        if freqs_hz is None:
+            raise ModelError("give freqs_hz, the frequency axis to evaluate the receptance on")
+        return self.pole_residues(outputs, inputs).evaluate(freqs_hz, quantity, decay=decay)
+
+    def frf_at_channels(self, channels: pd.DataFrame, freqs_hz, *, decay: float = 0.0,
+                        quantity: str = "accelerance") -> FrequencyResponse:
+        """The model's FRFs at the sensors of a channel table, driven at its force channel.
+
+        This is the model's counterpart of a measured H1 (thesis Figs. 3.18–3.19):
+        outputs are the acceleration channels (names), the input is the force
+        channel, along the directions and positions of the table.
+
+        Parameters
+        ----------
+        channels : pandas.DataFrame
+            Channel table with exactly one ``force`` row.
+        freqs_hz : array_like
+        decay : float, optional
+            Exponential-window decay of the measurement [1/s] (its FRF's ``exp_window_decay``).
+        quantity : str, optional
+            Default ``"accelerance"``.
+        """
+        force = channels[channels["quantity"] == "force"]
+        if len(force) != 1:
+            raise ModelError(f"the channel table must have exactly one force row, found {len(force)}")
+        acc = channels[channels["quantity"] == "acceleration"].reset_index(drop=True)
+        outs = dofs_from_channels(acc)
+        ins = dofs_from_channels(force)
+        pr = self.pole_residues(outs, ins)
+        return pr.evaluate(freqs_hz, quantity, decay=decay, channels=acc)
+
+    def modes(self) -> pd.DataFrame:
+        """Natural frequencies and damping of the (modified) system: one row per oscillating mode.
+
+        Columns ``f_hz`` (undamped, ``|λ|/2π``), ``zeta``, ``f_damped_hz``
+        (``Im λ/2π``); sorted by frequency.  Real (overdamped) poles are
+        listed with ``f_damped_hz = 0``; unrestrained rigid-body motions are
+        not poles and are counted in the log.
+        """
+        pr = self.pole_residues([], [])
+        lam = pr.poles
+        keep = lam.imag >= 0
+        lam = lam[keep]
+        f = np.abs(lam) / (2 * np.pi)
+        z = np.where(np.abs(lam) > 0, -lam.real / np.where(np.abs(lam) > 0, np.abs(lam), 1), 0)
+        df = pd.DataFrame({"f_hz": f, "zeta": z, "f_damped_hz": lam.imag / (2 * np.pi)})
+        return df.sort_values("f_hz", kind="stable").reset_index(drop=True)
+
+
+def _solve_coupled(M, C, K, To, Ti):
+    """Poles, residues and mass line of a small coupled system in coordinates (see module docstring)."""
+    n = M.shape[0]
+    # unrestrained rigid-body directions: null space of K and C together; they give a mass line
+    stacked = np.vstack([K, C])
+    _, s, vh = np.linalg.svd(stacked)
+    tol = 1e-10 * max(s[0] if s.size else 0.0, 1.0)
+    rank = int(np.sum(s > tol))
+    N = vh[rank:].conj().T.real if rank < n else np.zeros((n, 0))
+    mass_line = np.zeros((To.shape[0], Ti.shape[0]), complex)
+    if N.shape[1]:
+        mn = N.T @ M @ N
+        ev, evec = np.linalg.eigh(mn)
+        if ev.min() <= 0:
+            raise ModelError("a rigid-body motion of the modified model has no mass; check mass modifications")
+        N = N @ evec / np.sqrt(ev)
+        mass_line = (To @ N) @ (Ti @ N).T
+        P = scipy.linalg.null_space(N.T @ M)
+    else:
+        P = np.eye(n)
+    p = P.shape[1]
+    if p == 0:
+        return np.zeros(0, complex), np.zeros((To.shape[0], Ti.shape[0], 0), complex), mass_line
+    Mp, Cp, Kp = P.T @ M @ P, P.T @ C @ P, P.T @ K @ P
+    Minv = np.linalg.inv(Mp)
+    A = np.zeros((2 * p, 2 * p), complex)
+    A[:p, p:] = np.eye(p)
+    A[p:, :p] = -Minv @ Kp
+    A[p:, p:] = -Minv @ Cp
+    B = np.zeros((2 * p, p), complex)
+    B[p:] = Minv
+    lam, V = scipy.linalg.eig(A)
+    W = np.linalg.solve(V, B)  # (2p, p): V⁻¹ B
+    left = (To @ P) @ V[:p]  # (n_out, 2p)
+    right = W @ (Ti @ P).T  # (2p, n_in)
+    residues = left[:, None, :] * right.T[None, :, :]
+    cond = np.linalg.cond(V)
+    if cond > 1e10:
+        log.warning("the modified model's eigenvectors are nearly dependent (condition %.1e); receptances may be "
+                    "inaccurate near repeated modes", cond)
+    return lam, residues, mass_line

@@ -1,0 +1,144 @@
+"""Hybrid-model files: one NumPy ``.npz`` archive with a JSON header, versioned.
+
+Format ``railmodal.hybrid_model``, version 1 (all arrays SI units):
+
+=================  =====================  ===============================================
+key                shape / type           content
+=================  =====================  ===============================================
+``header``         0-d str (JSON)         ``{"format": "railmodal.hybrid_model", "version": 1,
+                                          "name", "origin": [...], "points": {name: {fe_node,
+                                          xyz}}, "modifications": [{"kind", ...params}],
+                                          "history": [...], "fe_source", "fe_format",
+                                          "fe_units", "fe_history": [...], "created"}``
+``node_ids``       int64 (n,)             FE node labels
+``xyz``            float64 (n, 3)         node coordinates [m]
+``shapes``         float64 (m, n, 3|6)    mass-normalised shapes of the kept modes
+``fe_freqs_hz``    float64 (m,)           FE natural frequencies [Hz]
+``freqs_hz``       float64 (m,)           model frequencies (test where paired) [Hz]
+``zeta``           float64 (m,)           modal damping ratios
+``fe_mode``        int64 (m,)             1-based mode number in the FE export
+``test_mode``      float64 (m,)           1-based paired test mode (NaN: none)
+``elem_id``        int64 (e,)             element labels (UFF 2412)
+``elem_type``      int64 (e,)             FE descriptor id
+``elem_prop``      int64 (e,)             physical property
+``elem_ptr``       int64 (e + 1,)         element e's nodes are ``elem_nodes[ptr[e]:ptr[e+1]]``
+``elem_nodes``     int64 (sum)            node labels
+=================  =====================  ===============================================
+
+Readers refuse files of another format or a newer version with a message
+that says which version they read.  Modifications are stored by ``kind`` and
+parameters and rebuilt through :data:`receptance.modification.MODIFICATIONS`.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+from fem_import.modes import Element, FEModes
+from receptance.dofs import Point
+from receptance.modal_model import ModalModel
+from receptance.modification import ModificationError, modification_from_dict
+
+__all__ = ["save_model", "load_model", "ModelFileError", "FORMAT", "VERSION"]
+
+FORMAT = "railmodal.hybrid_model"
+VERSION = 1
+
+
+class ModelFileError(ValueError):
+    """A hybrid-model file that cannot be read (names the file and what is wrong)."""
+
+
+def save_model(model: ModalModel, path: str | Path) -> Path:
+    """Write ``model`` to ``path`` (``.npz`` appended if missing); returns the path written."""
+    path = Path(path)
+    if path.suffix != ".npz":
+        path = path.with_suffix(path.suffix + ".npz")
+    fe = model.fe
+    header = {
+        "format": FORMAT,
+        "version": VERSION,
+        "name": model.name,
+        "origin": list(model.origin),
+        "points": {n: {"fe_node": p.fe_node, "xyz": None if p.xyz is None else list(p.xyz)}
+                   for n, p in model.points.items()},
+        "modifications": [m.to_dict() for m in model.modifications],
+        "history": list(model.history),
+        "fe_source": fe.source,
+        "fe_format": fe.format,
+        "fe_units": fe.units,
+        "fe_history": list(fe.history),
+        "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+    }
+    ptr = np.cumsum([0] + [len(e.nodes) for e in fe.elements]).astype(np.int64)
+    nodes = np.array([n for e in fe.elements for n in e.nodes], np.int64)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(
+        path,
+        header=np.array(json.dumps(header)),
+        node_ids=fe.node_ids, xyz=fe.xyz, shapes=fe.shapes, fe_freqs_hz=fe.freqs_hz,
+        freqs_hz=model.freqs_hz, zeta=model.zeta, fe_mode=model.fe_mode.astype(np.int64),
+        test_mode=model.test_mode,
+        elem_id=np.array([e.element_id for e in fe.elements], np.int64),
+        elem_type=np.array([e.fe_descriptor for e in fe.elements], np.int64),
+        elem_prop=np.array([e.physical_property for e in fe.elements], np.int64),
+        elem_ptr=ptr, elem_nodes=nodes,
+    )
+    return path
+
+
+def load_model(path: str | Path) -> ModalModel:
+    """Read a hybrid model written by :func:`save_model`.
+
+    Raises
+    ------
+    ModelFileError
+        Not an npz archive, another format, a newer version, missing arrays,
+        unknown modification kinds (the message names the file).
+    """
+    path = Path(path)
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+    except FileNotFoundError:
+        raise ModelFileError(f"{path}: no such hybrid-model file") from None
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+        raise ModelFileError(f"{path}: not a readable .npz hybrid-model file ({exc})") from exc
+    if "header" not in arrays:
+        raise ModelFileError(f"{path}: no 'header' entry; not a {FORMAT} file")
+    try:
+        header = json.loads(str(arrays["header"]))
+    except json.JSONDecodeError as exc:
+        raise ModelFileError(f"{path}: header is not valid JSON ({exc})") from exc
+    if header.get("format") != FORMAT:
+        raise ModelFileError(f"{path}: format {header.get('format')!r}, expected {FORMAT!r}")
+    version = header.get("version")
+    if not isinstance(version, int) or version > VERSION or version < 1:
+        raise ModelFileError(f"{path}: file version {version!r}; this railmodal reads {FORMAT} version <= {VERSION}")
+    need = ("node_ids", "xyz", "shapes", "fe_freqs_hz", "freqs_hz", "zeta", "fe_mode", "test_mode", "elem_id",
+            "elem_type", "elem_prop", "elem_ptr", "elem_nodes")
+    missing = [k for k in need if k not in arrays]
+    if missing:
+        raise ModelFileError(f"{path}: missing array(s) {missing}")
+    ptr, nodes = arrays["elem_ptr"], arrays["elem_nodes"]
+    elements = tuple(
+        Element(int(i), int(t), tuple(int(n) for n in nodes[ptr[k]:ptr[k + 1]]), int(p))
+        for k, (i, t, p) in enumerate(zip(arrays["elem_id"], arrays["elem_type"], arrays["elem_prop"]))
+    )
+    m = arrays["fe_freqs_hz"].size
+    try:
+        fe = FEModes(arrays["node_ids"], arrays["xyz"], elements, arrays["fe_freqs_hz"], arrays["shapes"], np.ones(m),
+                     source=header.get("fe_source", ""), format=header.get("fe_format", ""),
+                     units=header.get("fe_units", ""), history=tuple(header.get("fe_history", ())))
+        mods = tuple(modification_from_dict(d) for d in header.get("modifications", []))
+        points = {n: Point(n, p["fe_node"], p["xyz"]) for n, p in header.get("points", {}).items()}
+        return ModalModel(fe, arrays["freqs_hz"], arrays["zeta"], tuple(header["origin"]), arrays["fe_mode"],
+                          arrays["test_mode"], points=points, modifications=mods, name=header.get("name", ""),
+                          history=tuple(header.get("history", ())) + (f"read from {path}",))
+    except (ModificationError, ValueError, KeyError, TypeError) as exc:
+        raise ModelFileError(f"{path}: inconsistent hybrid-model file: {exc}") from exc
