@@ -112,7 +112,42 @@ def _cmd_build(args: argparse.Namespace) -> int:
 
 
 def _transfer_plots(model, f, args, out: Path, step) -> list[Path]:
-    return []
+    """Thesis Figs. 4.1–4.7: half-model receptances, the three transfer functions, their spectral spread."""
+    import numpy as np
+
+    from receptance.plot_transfer import plot_half_receptances, plot_spectral_std, plot_transfer
+    from receptance.robustness import robustness_study
+    from receptance.transfer import full_vertical_transfer, half_wheelset_transfer, vertical_lateral_transfer
+
+    plt = _agg()
+    theta_l, theta_r = np.radians(args.theta)
+    f = f[f > 0]
+    step("transfer functions: half wheelset (eq. 2.6), full vertical (2.11), vertical + lateral (2.22)")
+    models = {
+        "half": half_wheelset_transfer(model, f, side="L"),
+        "vertical": full_vertical_transfer(model, f),
+        "vertical_lateral": vertical_lateral_transfer(model, f, theta_l=theta_l, theta_r=theta_r),
+    }
+    written = []
+    fig = plot_half_receptances(models["half"])
+    fig.savefig(out / "fig4_1_half_receptances.png", dpi=120)
+    plt.close(fig)
+    written.append(out / "fig4_1_half_receptances.png")
+    for k, (name, tf) in enumerate(models.items()):
+        fig = plot_transfer(tf)
+        path = out / f"fig4_{k + 2}_transfer_{name}.png"
+        fig.savefig(path, dpi=120)
+        plt.close(fig)
+        written.append(path)
+    step(f"robustness: {args.robustness_models} models with modal frequencies and damping varied ±10 % (thesis §4.2)")
+    study = robustness_study(model, f, n_models=args.robustness_models, theta_l=theta_l, theta_r=theta_r, seed=0)
+    for k, name in enumerate(study.models):
+        fig = plot_spectral_std(study, name)
+        path = out / f"fig4_{k + 5}_spectral_std_{name}.png"
+        fig.savefig(path, dpi=120)
+        plt.close(fig)
+        written.append(path)
+    return written
 
 
 def _validation(model, hammer: str, channels: str, out: Path, step) -> list[Path]:
@@ -165,6 +200,8 @@ def add_model_commands(sub) -> None:
                    help="frequency range of the plots [Hz]")
     b.add_argument("--theta", nargs=2, type=float, default=[0.0, 0.0], metavar=("LEFT", "RIGHT"),
                    help="contact-plane angles θ_L, θ_R [deg] for the vertical+lateral model (eq. 2.12)")
+    b.add_argument("--robustness-models", type=int, default=50,
+                   help="perturbed models of the robustness study (thesis §4.2: 50)")
     b.add_argument("--hammer", action="append", help="optional: hammer-test UFF to validate the model against")
     b.add_argument("--channels", action="append", help="channel table of each --hammer file")
     b.add_argument("--out", required=True)

@@ -18,8 +18,12 @@ from .model_io import ModelFileError, load_model, save_model
 from .modification import (MODIFICATIONS, GroundSprings, Modification, ModificationError, PointMass,
                            PrimarySuspension, RigidBody, Spring, Term, register)
 from .pole_residue import PoleResidues
+from .robustness import RobustnessResult, perturbation_factors, perturbed_models, robustness_study
 from .track import track_frf, track_receptance
 from .trackform import Trackform, TrackformError, load_trackform
+from .transfer import (FrequencyAxisError, MeasurementTransfer, MissingDOFError, TransferModelError,
+                       acceleration_to_irregularity, contact_normals, full_vertical_transfer, half_wheelset_transfer,
+                       irregularity_to_acceleration, vertical_lateral_transfer)
 
 __all__ = [
     "Comparison", "compare_frf", "frf_errors",
@@ -31,6 +35,10 @@ __all__ = [
     "MODIFICATIONS", "GroundSprings", "Modification", "ModificationError", "PointMass", "PrimarySuspension",
     "RigidBody", "Spring", "Term", "register",
     "PoleResidues",
+    "RobustnessResult", "perturbation_factors", "perturbed_models", "robustness_study",
     "track_frf", "track_receptance",
     "Trackform", "TrackformError", "load_trackform",
+    "FrequencyAxisError", "MeasurementTransfer", "MissingDOFError", "TransferModelError",
+    "acceleration_to_irregularity", "contact_normals", "full_vertical_transfer", "half_wheelset_transfer",
+    "irregularity_to_acceleration", "vertical_lateral_transfer",
 ]

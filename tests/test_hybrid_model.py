@@ -150,3 +150,38 @@ def test_test_frequencies_remove_most_of_the_fe_error_on_an_as_built_wheelset(fe
     assert fe_only.channels["rel_error"].median() > 0.8
     assert hybrid.channels["rel_error"].median() < 0.05
     assert fe_only.summary_db > hybrid.summary_db
+
+
+def _every_mode_model(fe, points):
+    elastic = np.flatnonzero(fe.freqs_hz > 1.0)
+    table = pd.DataFrame({"test_mode": elastic + 1, "f_test_hz": fe.freqs_hz[elastic],
+                          "fe_modes": [str(j + 1) for j in elastic], "zeta": 0.0})
+    return hybrid_model(fe, table, points=points).with_modification(PrimarySuspension())
+
+
+def test_in_service_receptances_converge_to_the_full_fe_solution(fe, points, control_dir):
+    """The 12 thesis DOFs (Fig. 2.5) of the in-service wheelset against the lab's full FE model solved directly
+    (1890 DOFs, suspension springs and dampers, no modal truncation; tests/fe_receptance_oracle.py).
+
+    The modification itself is exact (tests/test_modal_model.py, complete basis); what remains here is the
+    truncation of the FE export: the contact points sit on the wheel rims, whose local flexibility lives in
+    modes far above 500 Hz. With the 500 Hz export the whole 12x12 matrix is within 2.5 % of its largest entry
+    up to 100 Hz; exporting modes to 2 kHz halves the error everywhere (convergence to the oracle)."""
+    from fe_receptance_oracle import fe_receptance
+    from receptance.dofs import THESIS_DOFS
+
+    dofs = [THESIS_DOFS[k] for k in range(1, 13)]
+    f = np.linspace(2.0, 400.0, 67)
+    oracle = fe_receptance(control_dir / "points.csv", dofs, f, in_service=True)
+    scale = np.abs(oracle).max(axis=(0, 1))
+
+    def worst(model, lo, hi):
+        H = model.receptance(dofs, dofs, f).data
+        band = (f >= lo) & (f <= hi)
+        return float((np.abs(H - oracle) / scale)[:, :, band].max())
+
+    fe_2k = fem_import.read(campaign_dir("control", fe_max_hz=2000.0) / "fe_design.uff")
+    m500, m2k = _every_mode_model(fe, points), _every_mode_model(fe_2k, points)
+    assert worst(m500, 2, 100) < 0.025
+    assert worst(m2k, 2, 100) < 0.6 * worst(m500, 2, 100)
+    assert worst(m2k, 300, 400) < 0.6 * worst(m500, 300, 400)

@@ -53,7 +53,8 @@ def test_model_build_saves_an_in_service_model_and_its_plots(tmp_path, control_d
     out = tmp_path / "model"
     code = main(["-q", "model", "build", "--pairing", str(pairing), "--fem", str(control_dir / "fe_design.uff"),
                  "--points", str(control_dir / "points.csv"), "--hammer", str(control_dir / "flexural.uff"),
-                 "--channels", str(control_dir / "flexural_channels.csv"), "--out", str(out)])
+                 "--channels", str(control_dir / "flexural_channels.csv"), "--theta", "3", "-40",
+                 "--robustness-models", "20", "--out", str(out)])
     text = capsys.readouterr()
     assert code == 0, text.err
     model = load_model(out / "hybrid_model.npz")
@@ -63,7 +64,10 @@ def test_model_build_saves_an_in_service_model_and_its_plots(tmp_path, control_d
     assert modes["f_hz"].iloc[1] == pytest.approx(9.00, abs=0.02)
     validation = pd.read_csv(out / "validation_flexural.csv")
     assert len(validation) == 29 and validation["rel_error"].max() < 0.01
-    for name in ("receptances.png", "validation_flexural_worst.png", "validation_flexural_errors.png"):
+    figures = ["fig4_1_half_receptances.png", "fig4_2_transfer_half.png", "fig4_3_transfer_vertical.png",
+               "fig4_4_transfer_vertical_lateral.png", "fig4_5_spectral_std_half.png",
+               "fig4_6_spectral_std_vertical.png", "fig4_7_spectral_std_vertical_lateral.png"]
+    for name in ["receptances.png", "validation_flexural_worst.png", "validation_flexural_errors.png", *figures]:
         assert (out / name).stat().st_size > 10_000
     assert "6.4" in text.out
 
