@@ -95,6 +95,20 @@ def test_cli_identify_and_pair(tmp_path):
     # FE-only modes are listed, not dropped: the 2-nodal-diameter wheel modes no hit can excite
     assert (table["description"].str.startswith("FE only") & (table["f_fe_hz"].round(0) == 416)).sum() == 4
     assert len(list(pair_dir.glob("pair_*.png"))) == len(paired)
+    # ... and on to the hybrid model (issue 4): the identified pairing builds a model that reproduces the
+    # measured FRFs of both setups and sits on its suspension at the lab FE's bounce and roll frequencies
+    model_dir = tmp_path / "model"
+    args = ["-q", "model", "build", "--pairing", str(pair_dir), "--fem", str(folder / "fe_design.uff"),
+            "--points", str(folder / "points.csv"), "--robustness-models", "10", "--out", str(model_dir)]
+    for setup in ("flexural", "torsional"):
+        args += ["--hammer", str(folder / f"{setup}.uff"), "--channels", str(folder / f"{setup}_channels.csv")]
+    assert main(args) == 0
+    system = pd.read_csv(model_dir / "system_modes.csv")
+    # lab FE (full mesh): 6.4305 and 9.0032 Hz; the hybrid model keeps only the paired modes (thesis policy)
+    np.testing.assert_allclose(system["f_hz"].iloc[:2], [6.4305, 9.0032], rtol=3e-3)
+    for setup in ("flexural", "torsional"):
+        validation = pd.read_csv(model_dir / f"validation_{setup}.csv")
+        assert validation["rel_error"].max() < 0.02, validation.sort_values("rel_error").tail(3)
 
 
 def test_cli_identify_reports_bad_input(tmp_path, capsys):
