@@ -145,6 +145,7 @@ class Pair:
     fe_indices: tuple[int, ...]
     mac: float
     fe_shape: np.ndarray  # (n_nodes, n_dof) best-matching FE shape (cluster combination), mass-normalised
+    weights: tuple[float, ...] = ()  # unit-norm combination of the cluster members giving fe_shape
 
 
 @dataclass(frozen=True)
@@ -163,7 +164,9 @@ class Pairing:
     unpaired_fe : tuple of int
         FE modes in the band without a test partner (rigid modes excluded).
     table : pandas.DataFrame
-        Thesis Table 3.1 style: ``test_mode, f_test_hz, fe_modes, f_fe_hz, df_pct, zeta, mac, description``,
+        Thesis Table 3.1 style: ``test_mode, f_test_hz, fe_modes, f_fe_hz, df_pct, zeta, mac, setup,
+        fe_weights, description`` (``fe_weights``: the ``;``-joined unit-norm combination of a degenerate
+        cluster's members that matches the test mode),
         with unpaired modes of either side as rows with empty partner fields.
     """
 
@@ -289,7 +292,7 @@ def pair_modes(
                 continue
             used_directions.setdefault(k, []).append(rot)
             shape = np.tensordot(rot, fe.shapes[c], axes=1)
-            pairs.append(Pair(int(i), tuple(c), float(sub[i, k]), shape))
+            pairs.append(Pair(int(i), tuple(c), float(sub[i, k]), shape, tuple(float(v) for v in rot)))
             paired_test.add(int(i))
             used_fe.update(c)
     pairs.sort(key=lambda p: test.freqs_hz[p.test_index])
@@ -317,21 +320,23 @@ def _table(test: ModeSet, fe: FEModes, pairs, unpaired_test, unpaired_fe) -> pd.
                 "zeta": test.zeta[p.test_index],
                 "mac": p.mac,
                 "setup": test.setup[p.test_index],
+                "fe_weights": ";".join(f"{w:.6f}" for w in p.weights),
                 "description": describe_fe_mode(fe, p.fe_shape),
             }
         )
     for i in unpaired_test:
         rows.append(
             {"test_mode": i + 1, "f_test_hz": test.freqs_hz[i], "fe_modes": "", "f_fe_hz": np.nan, "df_pct": np.nan,
-             "zeta": test.zeta[i], "mac": np.nan, "setup": test.setup[i], "description": "test only (no FE partner)"}
+             "zeta": test.zeta[i], "mac": np.nan, "setup": test.setup[i], "fe_weights": "",
+             "description": "test only (no FE partner)"}
         )
     for j in unpaired_fe:
         rows.append(
             {"test_mode": np.nan, "f_test_hz": np.nan, "fe_modes": str(j + 1), "f_fe_hz": fe.freqs_hz[j],
-             "df_pct": np.nan, "zeta": np.nan, "mac": np.nan, "setup": "",
+             "df_pct": np.nan, "zeta": np.nan, "mac": np.nan, "setup": "", "fe_weights": "",
              "description": f"FE only: {describe_fe_mode(fe, j)}"}
         )
     df = pd.DataFrame(rows, columns=["test_mode", "f_test_hz", "fe_modes", "f_fe_hz", "df_pct", "zeta", "mac", "setup",
-                                     "description"])
+                                     "fe_weights", "description"])
     key = df["f_test_hz"].fillna(df["f_fe_hz"])
     return df.iloc[np.argsort(key.to_numpy(), kind="stable")].reset_index(drop=True)

@@ -11,10 +11,11 @@ where their measured shape is known).
 Degenerate FE clusters (the two planes of a bending mode of an axisymmetric
 wheelset) are paired as one: when the test saw one member, every member gets
 its frequency and damping (the wheelset is axisymmetric, so the unseen plane
-is the same mode); when it saw as many members as the cluster has, the
-members (in FE frequency order) get the test modes in frequency order; with
-more members than test partners the extra members get the mean of the
-partners.
+is the same mode); when it saw several, the cluster's shapes are first
+rotated within the cluster so that each test mode has its own member — the
+combination the pairing found (``fe_weights`` of the pairing table;
+without weights, members in FE order) — and the members left over get the
+mean of the partners' values.
 """
 
 from __future__ import annotations
@@ -88,6 +89,30 @@ def _members(text: str, n_fe: int, row: int) -> list[int]:
     return [k - 1 for k in nums]
 
 
+def _rotate_cluster(shapes: np.ndarray, rows: pd.DataFrame, text: str) -> np.ndarray:
+    """Members of a degenerate cluster recombined so that member k is the k-th test mode's combination.
+
+    The combinations (rows' ``fe_weights``) are orthonormalised in the order of
+    the test frequencies and completed to an orthogonal matrix, so the new
+    members stay mass-normalised and span the same space.
+    """
+    n = shapes.shape[0]
+    W = []
+    for w in rows.get("fe_weights", pd.Series([""] * len(rows))).fillna("").astype(str):
+        if not w.strip():
+            return shapes
+        vals = np.array([float(v) for v in w.split(";")])
+        if vals.size != n or not np.all(np.isfinite(vals)) or np.linalg.norm(vals) == 0:
+            raise ModelError(f"pairing rows for FE modes {text}: fe_weights {w!r} must hold {n} finite numbers")
+        W.append(vals / np.linalg.norm(vals))
+    basis: list[np.ndarray] = []
+    for v in W + list(np.eye(n)):  # Gram-Schmidt in test-frequency order, completed by the unit vectors
+        u = v - sum((b @ v) * b for b in basis)
+        if np.linalg.norm(u) > 1e-6 and len(basis) < n:
+            basis.append(u / np.linalg.norm(u))
+    return np.tensordot(np.array(basis), shapes, axes=1)
+
+
 def hybrid_model(
     fe: FEModes,
     pairing,
@@ -137,11 +162,14 @@ def hybrid_model(
     for j in rigid:
         origin[j] = "rigid"
 
+    shapes = fe.shapes.copy()
     paired = table[table["fe_modes"].str.strip().ne("") & table["test_mode"].notna()]
     for text, rows in paired.groupby("fe_modes", sort=False):
         members = _members(text, n_fe, int(rows.index[0]) + 2)
         members = sorted(members, key=lambda j: f_fe[j])
         rows = rows.sort_values("f_test_hz")
+        if len(members) > 1 and len(rows) > 1:
+            shapes[members] = _rotate_cluster(fe.shapes[members], rows, text)
         ft, zt, tm = rows["f_test_hz"].to_numpy(float), rows["zeta"].to_numpy(float), rows["test_mode"].to_numpy(float)
         if np.any(~np.isfinite(ft)) or np.any(ft <= 0):
             raise ModelError(f"pairing rows for FE mode(s) {text}: test frequency must be > 0 Hz, got {ft.tolist()}")
@@ -193,7 +221,7 @@ def hybrid_model(
     kept = np.array([j for j in range(n_fe) if origin[j]], int)
     if not np.any([origin[j] == "test" for j in kept]):
         raise ModelError("the pairing pairs no test mode with an FE mode; nothing to build a hybrid model from")
-    sub = FEModes(fe.node_ids, fe.xyz, fe.elements, f_fe[kept], fe.shapes[kept], fe.modal_mass[kept],
+    sub = FEModes(fe.node_ids, fe.xyz, fe.elements, f_fe[kept], shapes[kept], fe.modal_mass[kept],
                   source=fe.source, format=fe.format, units=fe.units, history=fe.history)
     n_test = sum(origin[j] == "test" for j in kept)
     return ModalModel(sub, freqs[kept], zeta[kept], tuple(origin[j] for j in kept), kept + 1, test_mode[kept],

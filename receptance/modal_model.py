@@ -32,7 +32,7 @@ from receptance.dofs import Dof, DofError, Point, dofs_from_channels, parse_dof
 from receptance.modification import Modification, RigidBody
 from receptance.pole_residue import PoleResidues
 
-__all__ = ["ModalModel", "ModelError", "ORIGINS"]
+__all__ = ["ModalModel", "ModelError", "ORIGINS", "ChannelTerms"]
 
 log = logging.getLogger("receptance")
 
@@ -44,6 +44,49 @@ _DECOUPLED = 1e-9  # coupling below this fraction of a coordinate's own scale le
 
 class ModelError(ValueError):
     """An inconsistent modal model (names the mode, DOF or parameter)."""
+
+
+@dataclass(frozen=True)
+class ChannelTerms:
+    """Terms that exist only at measured channels: residuals and measured-only modes (curve-fit terms).
+
+    For channel ``c`` of setup ``setup`` the model's receptance gains
+    ``lower[c] / s² + upper[c] + Σ_r A_r[c] / (s² + 2ζ_r ω_r s + ω_r²)``:
+    a lower residual (mass line of modes below the band), an upper residual
+    (flexibility of modes above it) and modes seen in the test but absent from
+    the FE (modal constants ``A_r`` from the test's force point).  They have
+    no shape away from the channels, so they act on :meth:`ModalModel.frf_at_channels` only.
+
+    Parameters
+    ----------
+    kind : str
+        The effect that made them (``"residuals"``, ``"experimental_mode"``).
+    setup : str
+        Setup whose channels they belong to ("" for every setup).
+    lower, upper : dict of str -> complex
+        Per channel name [m/N · (rad/s)²] and [m/N].
+    modes : tuple of (f_hz, zeta, dict of str -> complex)
+    """
+
+    kind: str
+    setup: str = ""
+    lower: Mapping[str, complex] = field(default_factory=dict)
+    upper: Mapping[str, complex] = field(default_factory=dict)
+    modes: tuple = ()
+
+    def receptance(self, names: Sequence[str], s: np.ndarray) -> np.ndarray:
+        """(n_channels, n_freq) receptance of these terms at the Laplace variable ``s``."""
+        out = np.zeros((len(names), s.size), complex)
+        for i, name in enumerate(names):
+            if name in self.lower:
+                out[i] += self.lower[name] / s**2
+            if name in self.upper:
+                out[i] += self.upper[name]
+            for f, z, res in self.modes:
+                if name in res:
+                    w = 2 * np.pi * f
+                    out[i] += res[name] / (s**2 + 2 * z * w * s + w**2)
+        return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -84,6 +127,7 @@ class ModalModel:
     modifications: tuple[Modification, ...] = ()
     name: str = "hybrid model"
     history: tuple[str, ...] = ()
+    channel_terms: tuple[ChannelTerms, ...] = ()
 
     def __post_init__(self) -> None:
         m = len(self.fe)
@@ -117,6 +161,7 @@ class ModalModel:
         object.__setattr__(self, "points", dict(self.points))
         object.__setattr__(self, "modifications", tuple(self.modifications))
         object.__setattr__(self, "history", tuple(self.history))
+        object.__setattr__(self, "channel_terms", tuple(self.channel_terms))
 
     # ------------------------------------------------------------------ views
     def __len__(self) -> int:
@@ -152,8 +197,15 @@ class ModalModel:
                        history=self.history + (f"+ {modification.describe()}",))
 
     def without_modifications(self) -> "ModalModel":
-        """The bare modal model (free-free hybrid model)."""
-        return replace(self, modifications=(), history=self.history + ("modifications removed",))
+        """The bare modal model (free-free hybrid model): no modifications, no channel terms."""
+        return replace(self, modifications=(), channel_terms=(), history=self.history + ("modifications removed",))
+
+    def with_channel_terms(self, terms: ChannelTerms, *, step: str | None = None) -> "ModalModel":
+        """A new model with residual / measured-only-mode terms at measured channels."""
+        if not isinstance(terms, ChannelTerms):
+            raise ModelError(f"expected ChannelTerms, got {type(terms).__name__}")
+        return replace(self, channel_terms=self.channel_terms + (terms,),
+                       history=self.history + (step or f"+ {terms.kind} terms ({terms.setup or 'all setups'})",))
 
     def with_modal_parameters(self, freqs_hz=None, zeta=None, *, step: str = "modal parameters changed"
                               ) -> "ModalModel":
@@ -310,12 +362,53 @@ class ModalModel:
         sel = np.flatnonzero(touched)
         if sel.size == 0:
             return replace(pr, history=(f"{self.name}: modal sum of {len(self)} modes",))
-        poles, residues, mass_line = _solve_coupled(M[np.ix_(sel, sel)], C[np.ix_(sel, sel)], K[np.ix_(sel, sel)],
-                                                    To[:, sel], Ti[:, sel])
+        poles, residues, mass_line, share = _solve_coupled(M[np.ix_(sel, sel)], C[np.ix_(sel, sel)],
+                                                           K[np.ix_(sel, sel)], To[:, sel], Ti[:, sel])
+        if self.pins_test_modes:
+            poles, residues = self._pin(poles, residues, sel, share)
         return PoleResidues(np.concatenate([pr.poles, poles]), np.concatenate([pr.residues, residues], axis=2),
                             pr.mass_line + mass_line, labels_o, labels_i,
                             history=(f"{self.name}: {free.size} modal terms + {sel.size} coupled coordinates "
                                      f"({len(self.modifications)} modification(s))",))
+
+    @property
+    def pins_test_modes(self) -> bool:
+        """True when every modification is an effect present during the modal test.
+
+        The test's frequencies and damping already contain such an effect (the
+        rig springs, the bearings, the sensors' mass were there when the
+        wheelset was hit), so after adding it the modes that carry the test's
+        values keep them: the effect changes shapes and adds modes, it does not
+        move the measured ones a second time.  In-service modifications (the
+        primary suspension) do move them.
+        """
+        return bool(self.modifications) and all(getattr(m, "in_test", False) for m in self.modifications)
+
+    def _pin(self, poles, residues, sel, share):
+        """Move poles dominated by test-origin modal coordinates back to their test frequency and damping.
+
+        Coordinates with the same test frequency and damping (a degenerate cluster) count together: a
+        modification mixes the members of such a cluster, and the mode still belongs to it.
+        """
+        poles = poles.copy()
+        residues = residues.copy()
+        m = len(self)
+        groups: dict[tuple, list[int]] = {}
+        for j, c in enumerate(sel):
+            if c < m and self.origin[c] == "test":
+                groups.setdefault((self.freqs_hz[c], self.zeta[c]), []).append(j)
+        for k in range(poles.size):
+            if poles[k].imag == 0 or not groups:
+                continue
+            key, rows = max(groups.items(), key=lambda kv: share[kv[1], k].sum())
+            if share[rows, k].sum() <= 0.5:
+                continue
+            w, z = 2 * np.pi * key[0], key[1]
+            new = -z * w + 1j * np.sign(poles[k].imag) * w * np.sqrt(1 - z * z)
+            # keep the mass-normalised shape: the residue of a pair scales with 1 / Im(pole)
+            residues[:, :, k] *= poles[k].imag / new.imag
+            poles[k] = new
+        return poles, residues
 
     # ------------------------------------------------------------- responses
     def receptance(self, outputs, inputs=None, freqs_hz=None, *, quantity: str = "receptance",
@@ -361,7 +454,19 @@ class ModalModel:
         outs = dofs_from_channels(acc)
         ins = dofs_from_channels(force)
         pr = self.pole_residues(outs, ins)
-        return pr.evaluate(freqs_hz, quantity, decay=decay, channels=acc)
+        H = pr.evaluate(freqs_hz, quantity, decay=decay, channels=acc)
+        setup = ""
+        if "setup" in acc and acc["setup"].notna().any():
+            setup = str(acc["setup"].dropna().iloc[0])
+        terms = [t for t in self.channel_terms if t.setup in ("", setup)]
+        if not terms:
+            return H
+        s = 2j * np.pi * H.freqs_hz + float(decay)
+        names = list(H.outputs)
+        extra = sum(t.receptance(names, s) for t in terms)
+        power = {"receptance": 0, "mobility": 1, "accelerance": 2}[quantity]
+        data = H.data + (extra * s**power)[:, None, :]
+        return H.with_history(f"+ {len(terms)} channel term set(s)", data=data)
 
     def modes(self) -> pd.DataFrame:
         """Natural frequencies and damping of the (modified) system: one row per oscillating mode.
@@ -403,7 +508,7 @@ def _solve_coupled(M, C, K, To, Ti):
         P = np.eye(n)
     p = P.shape[1]
     if p == 0:
-        return np.zeros(0, complex), np.zeros((To.shape[0], Ti.shape[0], 0), complex), mass_line
+        return np.zeros(0, complex), np.zeros((To.shape[0], Ti.shape[0], 0), complex), mass_line, np.zeros((n, 0))
     Mp, Cp, Kp = P.T @ M @ P, P.T @ C @ P, P.T @ K @ P
     Minv = np.linalg.inv(Mp)
     A = np.zeros((2 * p, 2 * p), complex)
@@ -421,4 +526,8 @@ def _solve_coupled(M, C, K, To, Ti):
     if cond > 1e10:
         log.warning("the modified model's eigenvectors are nearly dependent (condition %.1e); receptances may be "
                     "inaccurate near repeated modes", cond)
-    return lam, residues, mass_line
+    # which coordinate each pole lives in: kinetic-energy share of its eigenvector (> 1/2 names an owner)
+    X = P @ V[:p]
+    energy = np.abs(X) ** 2 * np.diag(M)[:, None]
+    share = energy / np.maximum(energy.sum(axis=0, keepdims=True), np.finfo(float).tiny)
+    return lam, residues, mass_line, share

@@ -81,6 +81,8 @@ class Modification:
     """
 
     kind: ClassVar[str] = ""
+    #: present while the wheelset was tested (rig, bearings, sensors): see ModalModel.pins_test_modes
+    in_test: ClassVar[bool] = False
 
     def bodies(self) -> tuple[RigidBody, ...]:
         """Rigid bodies this modification adds (default none)."""

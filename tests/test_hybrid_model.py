@@ -23,14 +23,33 @@ from receptance.model_io import FORMAT, ModelFileError, load_model, save_model
 from receptance.modification import PrimarySuspension
 
 
-def truth_pairing(manifest, setup="flexural", fe_frequencies=False, fe=None) -> pd.DataFrame:
-    """The pairing table the truth implies: each elastic truth mode with its design FE partner(s)."""
+def truth_pairing(manifest, setup="flexural", fe_frequencies=False, fe=None, folder=None) -> pd.DataFrame:
+    """The pairing table the truth implies: each elastic truth mode with its design FE partner(s).
+
+    With ``fe`` and ``folder`` (the campaign) a degenerate FE pair gets the combination of its members that
+    matches the truth shape at the setup's sensors (``fe_weights``), as ``ema.pair_modes`` reports it.
+    """
     rows = []
+    design_f = {d["mode"]: d["f_hz"] for d in manifest["design_modes"]}
+    sensors = None
+    if fe is not None and folder is not None:
+        from fem_import.modes import shapes_at_channels
+
+        table = pd.read_csv(folder / f"{setup}_channels.csv")
+        acc = table[table["quantity"] == "acceleration"].set_index("node")
+        acc = acc.loc[manifest["setups"][setup]["accelerometer_nodes"]].reset_index()
+        sensors = shapes_at_channels(fe, acc)
     for k, m in enumerate(manifest["setups"][setup]["modes"]):
-        if m["f_hz"] > 1 and m.get("fe_partner"):
+        # a rigid-body FE mode is never a test partner (on a rig it becomes a few-Hz suspension mode)
+        if m["f_hz"] > 1 and m.get("fe_partner") and min(design_f[j] for j in m["fe_partner"]) > 1:
             f = float(np.mean(fe.freqs_hz[[j - 1 for j in m["fe_partner"]]])) if fe_frequencies else m["f_hz"]
+            weights = ""
+            if sensors is not None and len(m["fe_partner"]) > 1:
+                C = sensors[:, [j - 1 for j in m["fe_partner"]]]
+                w, *_ = np.linalg.lstsq(C, np.asarray(m["shapes"], float), rcond=None)
+                weights = ";".join(f"{v:.6f}" for v in w / np.linalg.norm(w))
             rows.append({"test_mode": k + 1, "f_test_hz": f, "fe_modes": "+".join(map(str, m["fe_partner"])),
-                         "zeta": m["zeta"], "mac": m.get("fe_mac", np.nan)})
+                         "zeta": m["zeta"], "mac": m.get("fe_mac", np.nan), "fe_weights": weights})
     return pd.DataFrame(rows)
 
 
