@@ -9,7 +9,9 @@ half-wheelset, full vertical and full vertical+lateral transfer functions
 (eqs. 2.6, 2.11, 2.22) that :mod:`estimator` inverts.
 """
 
-from .compare import Comparison, compare_frf, frf_errors
+from .compare import Comparison, ComparisonError, band_errors, compare, compare_frf, frf_errors, h1_variance
+from .diagnose import Diagnosis, EffectFit, Measurement, diagnose, fit_effect, misfit, rank_effects
+from .effects import EFFECTS, Effect, Parameter, register_effect
 from .contact import ContactParameters, HertzContact, hertz_compliance, hertz_contact, hertz_stiffness
 from .dofs import THESIS_DOFS, Dof, DofError, Point, dofs_from_channels, parse_dof, read_points, shifted_point
 from .hybrid import hybrid_model, read_pairing_table
@@ -26,7 +28,9 @@ from .transfer import (FrequencyAxisError, MeasurementTransfer, MissingDOFError,
                        irregularity_to_acceleration, vertical_lateral_transfer)
 
 __all__ = [
-    "Comparison", "compare_frf", "frf_errors",
+    "Comparison", "ComparisonError", "band_errors", "compare", "compare_frf", "frf_errors", "h1_variance",
+    "Diagnosis", "EffectFit", "Measurement", "diagnose", "fit_effect", "misfit", "rank_effects",
+    "EFFECTS", "Effect", "Parameter", "register_effect",
     "ContactParameters", "HertzContact", "hertz_compliance", "hertz_contact", "hertz_stiffness",
     "THESIS_DOFS", "Dof", "DofError", "Point", "dofs_from_channels", "parse_dof", "read_points", "shifted_point",
     "hybrid_model", "read_pairing_table",

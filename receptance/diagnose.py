@@ -18,7 +18,7 @@ residual pair or one modal constant per channel, so physics with few
 parameters wins over patches that explain the same evidence.  A candidate
 is *significant* when it lowers BIC by more than 10 (very strong evidence,
 Kass & Raftery 1995), lowers ``E`` by at least 10 %, and the model's error
-was above 1.5 times the measurement's noise floor ``E_noise`` (the same
+was above 1.2 times the measurement's noise floor ``E_noise`` (the same
 figure for a perfect model: the H1 random error from coherence and number
 of averages, Bendat & Piersol ``σ²/|H|² = (1 − γ²)/(2 n γ²)``); it is
 *plausible* when its fitted values lie inside their bounds.  The best
@@ -34,14 +34,15 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass, field
-from typing import Callable, Mapping, Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 import pandas as pd
 import scipy.optimize
 
 from ema.frf import FrequencyResponse
-from receptance.effects import EFFECTS, Effect, ExperimentalMode, Parameter, Residuals
+from receptance.compare import h1_variance
+from receptance.effects import EFFECTS, Effect, ExperimentalMode, Residuals
 from receptance.modal_model import ModalModel, ModelError
 
 __all__ = ["Measurement", "EffectFit", "Diagnosis", "Misfit", "misfit", "fit_effect", "rank_effects", "diagnose",
@@ -51,7 +52,7 @@ log = logging.getLogger("receptance")
 
 BIC_THRESHOLD = 10.0
 MIN_REDUCTION = 0.10
-NOISE_MARGIN = 1.5
+NOISE_MARGIN = 1.2
 OCTAVES = (10.0, 20.0, 40.0, 80.0, 160.0, 320.0, 500.0)
 
 
@@ -98,15 +99,12 @@ class Measurement:
 
     @property
     def sigma(self) -> np.ndarray:
-        """Random error of each line (n_out, n_f) from coherence and averages."""
-        H = self.frf.data[:, 0]
-        if self.frf.coherence is None:
-            return np.full(H.shape, 1e-2) * np.abs(H).mean(axis=1, keepdims=True)
-        g2 = np.clip(self.frf.coherence[:, 0], 1e-6, 1 - 1e-6)
-        n = self.frf.n_averages if self.frf.n_averages is not None else np.ones(H.shape[0])
-        rel = np.sqrt((1 - g2) / (2 * np.asarray(n, float)[:, None] * g2))
-        # a floor: the H1 of a line is never known better than 0.1 % (calibration, quantisation)
-        return np.abs(H) * np.maximum(rel, 1e-3)
+        """Random error of each line (n_out, n_f): the H1 variance of :func:`receptance.compare.h1_variance`."""
+        var = h1_variance(self.frf)
+        if var is None:
+            raise ModelError(f"setup {self.setup!r}: the measured FRF carries no coherence or averaging count, so "
+                             f"its noise floor is unknown; estimate it with ema.estimate_frf")
+        return np.sqrt(var)
 
 
 @dataclass(frozen=True)
@@ -216,7 +214,7 @@ def fit_effect(effect: Effect, model: ModalModel, measurements: Sequence[Measure
     """Fit one effect's parameters (log scale, inside their bounds) and score it (module docstring)."""
     before = before or misfit(model, measurements)
     tables = [m.channels for m in measurements]
-    if isinstance(effect, Residuals) or type(effect) is Residuals:
+    if isinstance(effect, Residuals):
         effect = _fit_residuals(model, measurements)
         return _score(effect, {}, {}, model, measurements, before, tables)
     if isinstance(effect, ExperimentalMode):
@@ -232,16 +230,22 @@ def fit_effect(effect: Effect, model: ModalModel, measurements: Sequence[Measure
     def model_at(x):
         return effect.apply(model, {p.name: 10 ** v for p, v in zip(params, x)}, tables)
 
-    def cost(x):
-        return float(np.sum(_residual_vector(model_at(x), measurements, stride * 2) ** 2))
+    coarse = 4  # the smoothed levels need only every fourth line
+    smooth = _SmoothSpectra(measurements, stride=coarse)
 
-    # coarse coordinate search over decades (the misfit of a stiffness is multimodal: a mode can sit on the
-    # wrong peak), then a bounded least-squares polish
+    def cost(x):
+        m = model_at(x)
+        return smooth.cost([m.frf_at_channels(ms.channels, ms.frf.freqs_hz[::coarse],
+                                              decay=ms.frf.exp_window_decay).data[:, 0] for ms in measurements])
+
+    # the complex misfit of a stiffness is full of narrow valleys (a sharp mode sliding past measured peaks);
+    # a coarse coordinate search on smoothed log spectra (sixth-octave RMS levels) finds the right basin,
+    # then a bounded least-squares polish on the complex misfit
     x = x0.copy()
     best = cost(x)
     for _ in range(2):
         for i in range(len(params)):
-            for v in np.linspace(lo[i], hi[i], 9):
+            for v in np.linspace(lo[i], hi[i], 17):
                 trial = x.copy()
                 trial[i] = v
                 c = cost(trial)
@@ -260,6 +264,35 @@ def fit_effect(effect: Effect, model: ModalModel, measurements: Sequence[Measure
     except np.linalg.LinAlgError:
         unc = {p.name: float("inf") for p in params}
     return _score(effect, values, unc, model, measurements, before, tables, params=params, x=x, lo=lo, hi=hi)
+
+
+class _SmoothSpectra:
+    """Sixth-octave RMS levels of measured and model FRFs: a misfit with broad basins for the coarse search."""
+
+    def __init__(self, measurements, per_octave: int = 6, stride: int = 1):
+        self.edges = []
+        self.levels = []
+        for m in measurements:
+            f = m.frf.freqs_hz[::stride]
+            lo, hi = max(f[0], OCTAVES[0]), min(f[-1], OCTAVES[-1])
+            n = max(int(np.ceil(per_octave * np.log2(hi / lo))), 1)
+            edges = lo * (hi / lo) ** (np.arange(n + 1) / n)
+            idx = np.clip(np.searchsorted(edges, f, side="right") - 1, 0, n - 1)
+            keep = (f >= lo) & (f <= hi)
+            self.edges.append((idx, keep, n))
+            self.levels.append(self._levels(m.frf.data[:, 0, ::stride], idx, keep, n))
+
+    @staticmethod
+    def _levels(H, idx, keep, n):
+        p = np.zeros((H.shape[0], n))
+        np.add.at(p.T, idx[keep], (np.abs(H[:, keep]) ** 2).T)
+        return 0.5 * np.log(np.maximum(p, 1e-300))
+
+    def cost(self, frfs) -> float:
+        total = 0.0
+        for (idx, keep, n), ref, H in zip(self.edges, self.levels, frfs):
+            total += float(np.sum((self._levels(H, idx, keep, n) - ref) ** 2))
+        return total
 
 
 def _score(effect, values, unc, model, measurements, before, tables, *, params=(), x=None, lo=None, hi=None):

@@ -266,7 +266,9 @@ class AxleboxBearing(Effect):
     def parameters(self) -> tuple[Parameter, ...]:
         return (Parameter("radial_N_per_m", "N/m", 1e7, 1e11, 1e9, "radial bearing stiffness per axlebox"),
                 Parameter("axial_N_per_m", "N/m", 1e6, 1e11, 3e8, "axial bearing stiffness per axlebox"),
-                Parameter("rocking_Nm_per_rad", "N m/rad", 1e4, 1e9, 1e7, "rocking stiffness per axlebox"))
+                Parameter("rocking_Nm_per_rad", "N m/rad", 1e4, 1e9, 1e7, "rocking stiffness per axlebox"),
+                Parameter("right_over_left", "-", 0.5, 2.0, 1.0,
+                          "stiffness of the right bearing over the left (two bearings never quite match)"))
 
     def apply(self, model, values, setups=()):
         v = self._values(values)
@@ -286,10 +288,14 @@ class AxleboxBearing(Effect):
             journals.append(int(model.fe.node_ids[j]))
             centres.append(tuple(float(c) for c in centre))
             extra.append(Point(f"journal_{s}", int(model.fe.node_ids[j]), tuple(centre)))
-        mod = BearingBodies(sides=self.sides, axlebox_nodes=tuple(boxes), journal_nodes=tuple(journals),
-                            centres=tuple(centres), mass=self.mass, inertia=tuple(self.inertia),
-                            radial=v["radial_N_per_m"], axial=v["axial_N_per_m"], rocking=v["rocking_Nm_per_rad"])
-        return model.with_points(extra).with_modification(mod)
+        out = model.with_points(extra)
+        for k, s in enumerate(self.sides):
+            f = v["right_over_left"] if s == "R" else 1.0
+            out = out.with_modification(BearingBodies(
+                sides=(s,), axlebox_nodes=(boxes[k],), journal_nodes=(journals[k],), centres=(centres[k],),
+                mass=self.mass, inertia=tuple(self.inertia), radial=f * v["radial_N_per_m"],
+                axial=f * v["axial_N_per_m"], rocking=f * v["rocking_Nm_per_rad"]))
+        return out
 
 
 @register_effect
@@ -397,8 +403,8 @@ class SeatJoints(Modification):
     loss_factor: float = 0.01
 
     def bodies(self) -> tuple[RigidBody, ...]:
-        return tuple(RigidBody(f"wheel_body_{s}", self.mass, tuple(self.inertia), tuple(c), tuple(nodes))
-                     for s, c, nodes in zip(self.sides, self.centres, self.carried))
+        return tuple(RigidBody(f"wheel_body_{s}", self.mass, tuple(self.inertia), tuple(c), tuple(nodes), hub)
+                     for s, c, nodes, hub in zip(self.sides, self.centres, self.carried, self.hub_nodes))
 
     def terms(self, rows) -> list[Term]:
         out = []

@@ -62,7 +62,7 @@ def read_pairing_table(source) -> pd.DataFrame:
         if not path.is_file():
             raise ModelError(f"{path}: no pairing table there; run 'railmodal lab pair' first")
         try:
-            df = pd.read_csv(path, dtype={"fe_modes": str})
+            df = pd.read_csv(path, dtype={"fe_modes": str, "fe_weights": str})
         except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
             raise ModelError(f"{path}: cannot read the pairing table: {exc}") from exc
         where = str(path)
@@ -70,7 +70,9 @@ def read_pairing_table(source) -> pd.DataFrame:
     if missing:
         raise ModelError(f"{where}: pairing table lacks column(s) {missing}; expected the columns of "
                          f"'railmodal lab pair' (test_mode, f_test_hz, fe_modes, f_fe_hz, zeta, mac, ...)")
-    df["fe_modes"] = df["fe_modes"].fillna("").astype(str)
+    df["fe_modes"] = df["fe_modes"].astype(object).where(df["fe_modes"].notna(), "").astype(str)
+    if "fe_weights" in df:
+        df["fe_weights"] = df["fe_weights"].astype(object).where(df["fe_weights"].notna(), "").astype(str)
     return df
 
 
@@ -98,7 +100,7 @@ def _rotate_cluster(shapes: np.ndarray, rows: pd.DataFrame, text: str) -> np.nda
     """
     n = shapes.shape[0]
     W = []
-    for w in rows.get("fe_weights", pd.Series([""] * len(rows))).fillna("").astype(str):
+    for w in rows["fe_weights"] if "fe_weights" in rows else [""] * len(rows):
         if not w.strip():
             return shapes
         vals = np.array([float(v) for v in w.split(";")])

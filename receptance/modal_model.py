@@ -266,6 +266,10 @@ class ModalModel:
                 r = p - np.asarray(b.centre)
                 row = np.concatenate([np.zeros(3), d]) if dof.rotation else np.concatenate([d, np.cross(r, d)])
                 T[i, m + 6 * k_body: m + 6 * k_body + 6] = row
+                if b.reference_node is not None and dof.point.name != b.name:
+                    # floating frame: the part's own deformation relative to its reference node's rigid motion
+                    ref = Point(f"{b.name}@ref", b.reference_node, tuple(p))
+                    T[i, :m] = self._fe_row(dof) - self._fe_row(Dof(dof.label, ref, dof.direction, dof.rotation))
                 continue
             T[i, :m] = self._fe_row(dof)
         return T

@@ -8,6 +8,8 @@ key                shape / type           content
 ``header``         0-d str (JSON)         ``{"format": "railmodal.hybrid_model", "version": 1,
                                           "name", "origin": [...], "points": {name: {fe_node,
                                           xyz}}, "modifications": [{"kind", ...params}],
+                                          "channel_terms": [{"kind", "setup", "lower", "upper",
+                                          "modes"}] (complex values as [re, im]),
                                           "history": [...], "fe_source", "fe_format",
                                           "fe_units", "fe_history": [...], "created"}``
 ``node_ids``       int64 (n,)             FE node labels
@@ -41,7 +43,7 @@ import numpy as np
 
 from fem_import.modes import Element, FEModes
 from receptance.dofs import Point
-from receptance.modal_model import ModalModel
+from receptance.modal_model import ChannelTerms, ModalModel
 from receptance.modification import ModificationError, modification_from_dict
 
 __all__ = ["save_model", "load_model", "ModelFileError", "FORMAT", "VERSION"]
@@ -68,6 +70,7 @@ def save_model(model: ModalModel, path: str | Path) -> Path:
         "points": {n: {"fe_node": p.fe_node, "xyz": None if p.xyz is None else list(p.xyz)}
                    for n, p in model.points.items()},
         "modifications": [m.to_dict() for m in model.modifications],
+        "channel_terms": [_terms_to_json(t) for t in model.channel_terms],
         "history": list(model.history),
         "fe_source": fe.source,
         "fe_format": fe.format,
@@ -90,6 +93,21 @@ def save_model(model: ModalModel, path: str | Path) -> Path:
         elem_ptr=ptr, elem_nodes=nodes,
     )
     return path
+
+
+def _cplx(d: dict) -> dict:
+    return {k: [float(np.real(v)), float(np.imag(v))] for k, v in d.items()}
+
+
+def _terms_to_json(t: ChannelTerms) -> dict:
+    return {"kind": t.kind, "setup": t.setup, "lower": _cplx(t.lower), "upper": _cplx(t.upper),
+            "modes": [[float(f), float(z), _cplx(r)] for f, z, r in t.modes]}
+
+
+def _terms_from_json(d: dict) -> ChannelTerms:
+    back = lambda x: {k: complex(v[0], v[1]) for k, v in x.items()}  # noqa: E731
+    return ChannelTerms(d["kind"], d.get("setup", ""), back(d.get("lower", {})), back(d.get("upper", {})),
+                        tuple((f, z, back(r)) for f, z, r in d.get("modes", [])))
 
 
 def load_model(path: str | Path) -> ModalModel:
@@ -137,8 +155,10 @@ def load_model(path: str | Path) -> ModalModel:
                      units=header.get("fe_units", ""), history=tuple(header.get("fe_history", ())))
         mods = tuple(modification_from_dict(d) for d in header.get("modifications", []))
         points = {n: Point(n, p["fe_node"], p["xyz"]) for n, p in header.get("points", {}).items()}
+        terms = tuple(_terms_from_json(t) for t in header.get("channel_terms", []))
         return ModalModel(fe, arrays["freqs_hz"], arrays["zeta"], tuple(header["origin"]), arrays["fe_mode"],
                           arrays["test_mode"], points=points, modifications=mods, name=header.get("name", ""),
+                          channel_terms=terms,
                           history=tuple(header.get("history", ())) + (f"read from {path}",))
     except (ModificationError, ValueError, KeyError, TypeError) as exc:
         raise ModelFileError(f"{path}: inconsistent hybrid-model file: {exc}") from exc

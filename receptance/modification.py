@@ -61,6 +61,12 @@ class RigidBody:
     carries : tuple of int
         FE nodes whose motion the body now carries (sensors and points
         attached to these nodes move with the body, not with the FE modes).
+    reference_node : int, optional
+        For a flexible part (a wheel on a compliant seat): the carried nodes
+        move with the body *plus* their FE deformation relative to the rigid
+        motion of this FE node (a floating frame): ``u = u_body + θ_body × r +
+        (u_FE − u_FE,rigid about the reference node)``.  None: the carried
+        nodes move rigidly with the body (an axlebox).
     """
 
     name: str
@@ -68,6 +74,7 @@ class RigidBody:
     inertia: tuple[float, float, float]
     centre: tuple[float, float, float]
     carries: tuple[int, ...] = ()
+    reference_node: int | None = None
 
     def mass_matrix(self) -> np.ndarray:
         return np.diag([self.mass] * 3 + list(self.inertia)).astype(float)
@@ -146,7 +153,8 @@ def _jsonable(v):
 def _from_json(v):
     if isinstance(v, dict) and "__body__" in v:
         b = v["__body__"]
-        return RigidBody(b["name"], b["mass"], tuple(b["inertia"]), tuple(b["centre"]), tuple(b["carries"]))
+        return RigidBody(b["name"], b["mass"], tuple(b["inertia"]), tuple(b["centre"]), tuple(b["carries"]),
+                         b.get("reference_node"))
     if isinstance(v, list):
         return tuple(_from_json(x) for x in v)
     return v

@@ -59,11 +59,30 @@ def plot_comparison(comparison, channels: Sequence[str] | None = None, *, n_wors
     ----------
     comparison : receptance.compare.Comparison
     channels : sequence of str, optional
-        Default: the ``n_worst`` channels by ``db_rms``.
+        Row keys (``comparison.channels['key']``, e.g. ``flexural/axle_01``) or,
+        when unambiguous, channel names. Default: the ``n_worst`` channels of
+        the comparison's ranking (largest share of the error above the noise
+        floor).
     """
     table = comparison.channels
+    keys = list(table["key"]) if "key" in table else list(table["channel"])
     if channels is None:
-        channels = list(table.sort_values("db_rms", ascending=False)["channel"].head(n_worst))
+        ranked = comparison.ranking
+        channels = list(ranked.loc[ranked["kind"] == "channel", "name"].head(n_worst))
+    else:
+        by_name = {}
+        for k, name in zip(keys, table["channel"]):
+            by_name.setdefault(str(name), []).append(k)
+        resolved = []
+        for ch in channels:
+            if ch in keys:
+                resolved.append(ch)
+            elif len(by_name.get(ch, [])) == 1:
+                resolved.append(by_name[ch][0])
+            else:
+                raise KeyError(f"channel {ch!r} is not a row key of the comparison and not a unique channel name; "
+                               f"keys: {keys}")
+        channels = resolved
     n = len(channels)
     if fig is None:
         fig = plt.figure(figsize=(9, 2.4 * n + 0.6))
@@ -72,12 +91,16 @@ def plot_comparison(comparison, channels: Sequence[str] | None = None, *, n_wors
     for ax, ch in zip(axes, channels):
         hx = comparison.measured.select(outputs=[ch]).data[0, 0]
         hm = comparison.model.select(outputs=[ch]).data[0, 0]
-        row = table[table["channel"] == ch].iloc[0]
+        row = table.iloc[keys.index(ch)]
         ax.semilogy(f, np.abs(hx), color="k", lw=1.0, label="measured H1")
         ax.semilogy(f, np.abs(hm), color="tab:red", lw=1.0, ls="--", label="model")
+        ax.semilogy(f, np.abs(hm - hx), color="0.6", lw=0.7, ls=":", label="|model − measured|")
         ax.set_ylabel("|A| [m/s²/N]")
+        extra = ""
+        if "band_error" in row:
+            extra = f", band-normalised {100 * row['band_error']:.1f} %"
         ax.set_title(f"{ch}: {row['db_rms']:.2f} dB RMS, complex error {100 * row['rel_error']:.2f} %, "
-                     f"FRAC {row['frac']:.4f}", fontsize=9)
+                     f"FRAC {row['frac']:.4f}{extra}", fontsize=9)
         ax.grid(True, which="both", lw=0.3)
     axes[0].legend(fontsize=8)
     axes[-1].set_xlabel("frequency [Hz]")
@@ -94,7 +117,7 @@ def plot_channel_errors(comparison, *, ax=None):
     t = comparison.channels
     x = np.arange(len(t))
     ax.bar(x, t["db_rms"], color="tab:blue", label="dB RMS")
-    ax.set_xticks(x, t["channel"], rotation=90, fontsize=7)
+    ax.set_xticks(x, t["key"] if "key" in t else t["channel"], rotation=90, fontsize=7)
     ax.set_ylabel("magnitude error [dB RMS]")
     ax2 = ax.twinx()
     ax2.plot(x, 100 * t["rel_error"], "o", color="tab:red", ms=3, label="complex error")

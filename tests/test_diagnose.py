@@ -65,6 +65,26 @@ def test_vanishing_effects_leave_the_model_unchanged_and_test_frequencies_stay_p
     np.testing.assert_allclose(heavy.modes()["f_hz"].to_numpy()[-elastic.size:], elastic, rtol=1e-9)
 
 
+def test_compliant_parts_reach_their_rigid_limit(rig):
+    """Bearing and wheel-seat springs a thousand times stiffer than real leave the FRFs of the flexural setup
+    (hit on the disc, no spin) as they were: the floating-frame kinematics and the inertia moved from the FE
+    to the new bodies are consistent."""
+    from receptance.effects import AxleboxBearing, WheelSeatJoint
+
+    model, meas, _ = rig
+    tables = [m.channels for m in meas]
+    one = [meas[0]]
+    base = misfit(model, one).summary
+    joint = WheelSeatJoint().apply(model, {"rocking_Nm_per_rad": 1e12, "radial_N_per_m": 1e13}, tables)
+    assert misfit(joint, one).summary == pytest.approx(base, rel=0.01)
+    assert misfit(WheelSeatJoint().apply(model, {"rocking_Nm_per_rad": 1e8, "radial_N_per_m": 1e10}, tables),
+                  one).summary > 1.5 * base
+    bearing = AxleboxBearing(inertia=(0.85, 1.3, 0.85)).apply(
+        model, {"radial_N_per_m": 1e13, "axial_N_per_m": 1e13, "rocking_Nm_per_rad": 1e11, "right_over_left": 1.0},
+        tables)
+    assert misfit(bearing, one).summary == pytest.approx(base, rel=0.05)
+
+
 def test_rig_springs_are_found_first_with_their_stiffness(rig):
     """Lab truth: 3.5e5 N/m vertical per axlebox lug (horizontal 4e3 N/m: its modes lie below 1 Hz, far under
     the 10 Hz band, so the data cannot determine it and the fit says so)."""

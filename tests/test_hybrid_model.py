@@ -112,7 +112,11 @@ def test_in_service_bounce_and_roll_match_the_lab_fe_model(fe, points, control_m
 
 
 def test_model_file_round_trip_and_refusals(fe, points, control_manifest, tmp_path):
+    from receptance.modal_model import ChannelTerms
+
     model = hybrid_model(fe, truth_pairing(control_manifest), points=points).with_modification(PrimarySuspension())
+    model = model.with_channel_terms(ChannelTerms("residuals", "flexural", {"axle_01": 1e-4}, {"axle_01": 2e-9},
+                                                  ((195.0, 0.01, {"axle_01": 3e-3 + 1e-3j}),)))
     path = save_model(model, tmp_path / "m")
     assert path.name == "m.npz"
     back = load_model(path)
@@ -120,6 +124,7 @@ def test_model_file_round_trip_and_refusals(fe, points, control_manifest, tmp_pa
     dofs = ["contact_L:z", "axlebox_L:z", "contact_R:y", "axlebox_R:y"]
     np.testing.assert_array_equal(back.receptance(dofs, dofs, f).data, model.receptance(dofs, dofs, f).data)
     assert back.modifications == model.modifications and back.origin == model.origin
+    assert back.channel_terms == model.channel_terms
     assert len(back.fe.elements) == len(fe.elements)
     with np.load(path) as z:
         header = json.loads(str(z["header"]))
