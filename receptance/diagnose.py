@@ -33,6 +33,7 @@ and finds the next one.
 
 from __future__ import annotations
 
+import functools
 import logging
 import time
 from dataclasses import dataclass, field
@@ -85,7 +86,16 @@ class Measurement:
 
     def band_weights(self, bands=None) -> tuple[np.ndarray, np.ndarray]:
         """Per line ``1/‖H_x‖_b`` of its channel-band (0 outside the bands) and the band index of each line."""
-        bands = OCTAVES if bands is None else bands
+        if bands is None or tuple(bands) == OCTAVES:
+            return self._octave_weights
+        return self._band_weights(bands)
+
+    @functools.cached_property
+    def _octave_weights(self) -> tuple[np.ndarray, np.ndarray]:
+        # every evaluation of a fit needs them: computed once per measurement
+        return self._band_weights(OCTAVES)
+
+    def _band_weights(self, bands) -> tuple[np.ndarray, np.ndarray]:
         f = self.frf.freqs_hz
         Hx = self.frf.data[:, 0]
         idx = np.searchsorted(np.asarray(bands), f, side="right") - 1
@@ -99,7 +109,7 @@ class Measurement:
             w[:, sel] = 1.0 / np.linalg.norm(Hx[:, sel], axis=1, keepdims=True)
         return w, idx
 
-    @property
+    @functools.cached_property
     def sigma(self) -> np.ndarray:
         """Random error of each line (n_out, n_f): the H1 variance of :func:`receptance.compare.h1_variance`."""
         var = h1_variance(self.frf)
@@ -134,7 +144,8 @@ def _model_frfs(model: ModalModel, measurements: Sequence[Measurement]) -> list[
 def misfit(model: ModalModel, measurements: Sequence[Measurement], *, bands=OCTAVES) -> Misfit:
     """Summary error ``E`` of ``model`` against ``measurements`` and its noise floor (module docstring)."""
     rows, brows = [], []
-    for m, Hm in zip(measurements, _model_frfs(model, measurements)):
+    frfs = _model_frfs(model, measurements)
+    for m, Hm in zip(measurements, frfs):
         Hx = m.frf.data[:, 0]
         sig = m.sigma
         w, idx = m.band_weights(bands)
@@ -151,7 +162,7 @@ def misfit(model: ModalModel, measurements: Sequence[Measurement], *, bands=OCTA
     summary = float(np.sqrt(np.mean(per_band["rel_error"] ** 2)))
     floor = float(np.sqrt(np.mean(per_band["noise"] ** 2)))
     fine = []
-    for m, Hm in zip(measurements, _model_frfs(model, measurements)):
+    for m, Hm in zip(measurements, frfs):
         edges = _sixth_octaves(m.frf.freqs_hz, bands)
         fine.append(band_errors(m.frf.freqs_hz, m.frf.data[:, 0], Hm, edges).ravel())
     fine = np.concatenate(fine)

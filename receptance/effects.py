@@ -174,16 +174,21 @@ class BearingBodies(Modification):
                      for s, n, c in zip(self.sides, self.axlebox_nodes, self.centres))
 
     def terms(self, rows) -> list[Term]:
-        out = []
-        for s in self.sides:
-            journal, body = f"journal_{s}", f"axlebox_body_{s}"
-            # the FE's copy of the axlebox inertia, taken off its journal
-            out += PointMass(point=journal, mass=-self.mass, inertia=tuple(-np.asarray(self.inertia))).terms(rows)
-            axes = ("x", "y", "z", "rx", "rz")
-            k = np.array((self.radial, self.axial, self.radial, self.rocking, self.rocking)) * (1 + 1j * self.loss_factor)
-            rel = rows([f"{body}:{a}" for a in axes]) - rows([f"{journal}:{a}" for a in axes])
-            out.append(Term(rel, K=np.diag(k)))
-        return out
+        k = dict(x=self.radial, y=self.axial, z=self.radial, rx=self.rocking, rz=self.rocking)
+        return [t for s in self.sides for t in _detached_body_terms(
+            rows, f"journal_{s}", f"axlebox_body_{s}", self.mass, self.inertia, k, self.loss_factor)]
+
+
+def _detached_body_terms(rows, anchor: str, body: str, mass: float, inertia, stiffness: dict,
+                         loss_factor: float) -> list[Term]:
+    """A part the FE carried rigidly on ``anchor``, detached: its inertia taken off the anchor (negative point
+    mass, exact for the rigid part of the motion) and springs ``stiffness`` (axis -> value, complex with the
+    loss factor) between the new ``body`` and the anchor."""
+    out = PointMass(point=anchor, mass=-mass, inertia=tuple(-np.asarray(inertia))).terms(rows)
+    axes = list(stiffness)
+    k = np.array([stiffness[a] for a in axes]) * (1 + 1j * loss_factor)
+    rel = rows([f"{body}:{a}" for a in axes]) - rows([f"{anchor}:{a}" for a in axes])
+    return out + [Term(rel, K=np.diag(k))]
 
 
 # ----------------------------------------------------------------------------------- the effects
@@ -407,17 +412,11 @@ class SeatJoints(Modification):
                      for s, c, nodes, hub in zip(self.sides, self.centres, self.carried, self.hub_nodes))
 
     def terms(self, rows) -> list[Term]:
-        out = []
-        for s in self.sides:
-            seat, body = f"seat_{s}", f"wheel_body_{s}"
-            out += PointMass(point=seat, mass=-self.mass, inertia=tuple(-np.asarray(self.inertia))).terms(rows)
-            axes = ("x", "y", "z", "rx", "ry", "rz")
-            # axial and torsional stay stiff (the press fit does not slip): ten times the radial value per metre
-            k = np.array((self.radial, 10 * self.radial, self.radial, self.rocking, 10 * self.rocking, self.rocking)
-                         ) * (1 + 1j * self.loss_factor)
-            rel = rows([f"{body}:{a}" for a in axes]) - rows([f"{seat}:{a}" for a in axes])
-            out.append(Term(rel, K=np.diag(k)))
-        return out
+        # axial and torsional stay stiff (the press fit does not slip): ten times the radial value per metre
+        k = dict(x=self.radial, y=10 * self.radial, z=self.radial, rx=self.rocking, ry=10 * self.rocking,
+                 rz=self.rocking)
+        return [t for s in self.sides for t in _detached_body_terms(
+            rows, f"seat_{s}", f"wheel_body_{s}", self.mass, self.inertia, k, self.loss_factor)]
 
 
 @register_effect

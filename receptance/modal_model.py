@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 import scipy.linalg
 
-from ema.frf import FrequencyResponse
+from ema.frf import QUANTITIES, FrequencyResponse
 from fem_import.modes import FEModes
 from receptance.dofs import Dof, DofError, Point, dofs_from_channels, parse_dof
 from receptance.modification import Modification, RigidBody
@@ -468,8 +468,7 @@ class ModalModel:
         s = 2j * np.pi * H.freqs_hz + float(decay)
         names = list(H.outputs)
         extra = sum(t.receptance(names, s) for t in terms)
-        power = {"receptance": 0, "mobility": 1, "accelerance": 2}[quantity]
-        data = H.data + (extra * s**power)[:, None, :]
+        data = H.data + (extra * s ** QUANTITIES[quantity][0])[:, None, :]
         return H.with_history(f"+ {len(terms)} channel term set(s)", data=data)
 
     def modes(self) -> pd.DataFrame:
@@ -481,12 +480,9 @@ class ModalModel:
         not poles and are counted in the log.
         """
         pr = self.pole_residues([], [])
-        lam = pr.poles
-        keep = lam.imag >= 0
-        lam = lam[keep]
-        f = np.abs(lam) / (2 * np.pi)
-        z = np.where(np.abs(lam) > 0, -lam.real / np.where(np.abs(lam) > 0, np.abs(lam), 1), 0)
-        df = pd.DataFrame({"f_hz": f, "zeta": z, "f_damped_hz": lam.imag / (2 * np.pi)})
+        keep = pr.poles.imag >= 0
+        df = pd.DataFrame({"f_hz": pr.natural_frequencies_hz[keep], "zeta": pr.damping_ratios[keep],
+                           "f_damped_hz": pr.poles.imag[keep] / (2 * np.pi)})
         return df.sort_values("f_hz", kind="stable").reset_index(drop=True)
 
 

@@ -26,6 +26,7 @@ from typing import Sequence
 import numpy as np
 
 from ema.frf import QUANTITIES, FrequencyResponse
+from ema.lsce import pole_frequency_hz
 
 __all__ = ["PoleResidues", "pole_pairs"]
 
@@ -156,7 +157,7 @@ class PoleResidues:
     @property
     def natural_frequencies_hz(self) -> np.ndarray:
         """``|λ| / 2π`` for each pole [Hz]."""
-        return np.abs(self.poles) / (2 * np.pi)
+        return pole_frequency_hz(self.poles)
 
     @property
     def damping_ratios(self) -> np.ndarray:
