@@ -1,11 +1,13 @@
 """The ``railmodal`` command line.
 
-``railmodal demo``                      simulate a virtual-lab campaign and say what was written
+``railmodal demo``                      simulate a virtual-lab campaign and run the whole lab workflow on it (report)
 ``railmodal lab simulate``              write a campaign of one scenario (``--scenario NAME --out DIR``)
 ``railmodal lab scenarios``             list the virtual-lab scenarios
 ``railmodal lab render``                pictures of the design wheelset and its modes
 ``railmodal lab identify``              hammer-test files -> identified modes, stabilisation and FRF plots
 ``railmodal lab pair``                  identified modes + FE export -> pairing table (thesis Table 3.1) and renders
+``railmodal lab diagnose``              hammer tests + FE export -> identify, pair, hybrid model, compare, diagnose;
+                                        diagnosis.json and report.html
 ``railmodal model track``               rail point receptances (thesis §2.4) -> track_receptance.csv and plot
 ``railmodal model build``               pairing + FE export + points -> hybrid wheelset model, transfer functions
 """
@@ -18,6 +20,7 @@ import sys
 import time
 from pathlib import Path
 
+from railmodal.diagnose_command import add_diagnose_parser, summarise
 from railmodal.model_commands import add_model_commands
 
 __all__ = ["main"]
@@ -39,14 +42,21 @@ def _progress(msg: str) -> None:
     print(f"  … {msg}", file=sys.stderr, flush=True)
 
 
-def _describe_campaign(files: dict[str, Path]) -> None:
+def _describe_campaign(files: dict[str, Path], brief: bool = False) -> None:
     import json
 
+    manifest = json.loads(files["truth"].read_text())
+    if brief:
+        size = sum(p.stat().st_size for p in files.values())
+        folder = files["truth"].parent
+        print(f"campaign: {len(files)} files ({size / 1e6:.1f} MB) in {folder}: "
+              + ", ".join(p.name for p in files.values()))
+        print(f"scenario: {manifest['scenario']['name']} — {manifest['scenario']['description']}")
+        return
     print("files written:")
     for key, path in files.items():
         size = path.stat().st_size
         print(f"  {key:20s} {path}  ({size / 1e6:.2f} MB)")
-    manifest = json.loads(files["truth"].read_text())
     print(f"scenario: {manifest['scenario']['name']} — {manifest['scenario']['description']}")
     for name, setup in manifest["setups"].items():
         seen = [m for m in setup["modes"] if m["observable"]]
@@ -62,6 +72,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
     t0 = time.perf_counter()
     files = simulate(args.scenario, args.out, progress=None if args.quiet else _progress, fe_max_hz=args.fe_max_hz,
+                     fe_export_hz=args.fe_export_hz,
                      seed=args.seed, n_hits=args.hits)
     _describe_campaign(files)
     print(f"done in {time.perf_counter() - t0:.1f} s")
@@ -192,14 +203,23 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     from lab_data.campaign import simulate
 
     out = Path(args.out)
+    step = (lambda msg: None) if args.quiet else _progress
     print(f"railmodal demo: simulating a virtual-lab impact-test campaign (scenario {args.scenario!r}) into {out}")
     t0 = time.perf_counter()
-    files = simulate(args.scenario, out, progress=None if args.quiet else _progress)
-    _describe_campaign(files)
+    files = simulate(args.scenario, out, progress=step, fe_export_hz=2000.0)
+    _describe_campaign(files, brief=not args.no_diagnose)
     pictures = _render(out / "pictures", 4, args.quiet)
-    print("pictures:")
-    for p in pictures:
-        print(f"  {p}")
+    print(f"pictures: {len(pictures)} PNG in {out / 'pictures'}")
+    if not args.no_diagnose:
+        from railmodal.diagnose_command import run_lab_diagnosis
+
+        print("running the lab workflow: identify -> pair -> hybrid model -> compare -> diagnose")
+        setups = [(out / "flexural.uff", out / "flexural_channels.csv"),
+                  (out / "torsional.uff", out / "torsional_channels.csv")]
+        result = run_lab_diagnosis(setups, out / "fe_design.uff", out / "points.csv", out / "diagnosis",
+                                   progress=step)
+        for line in summarise(result):
+            print(line)
     print(f"done in {time.perf_counter() - t0:.1f} s")
     return 0
 
@@ -211,9 +231,12 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output")
     sub = parser.add_subparsers(dest="command", required=True)
 
-    demo = sub.add_parser("demo", help="simulate a virtual-lab campaign and report what was written")
+    demo = sub.add_parser("demo", help="simulate a virtual-lab campaign, run the whole lab workflow on it and "
+                                       "write the diagnosis report")
     demo.add_argument("--out", default="railmodal-demo", help="output folder (default: ./railmodal-demo)")
-    demo.add_argument("--scenario", default="control", choices=_scenario_names())
+    demo.add_argument("--scenario", default="rig", choices=_scenario_names(),
+                      help="virtual-lab scenario (default: rig, whose hidden crane springs the diagnosis finds)")
+    demo.add_argument("--no-diagnose", action="store_true", help="only simulate the campaign and render pictures")
     demo.set_defaults(func=_cmd_demo)
 
     lab = sub.add_parser("lab", help="virtual wheelset lab")
@@ -221,7 +244,11 @@ def build_parser() -> argparse.ArgumentParser:
     sim = lab_sub.add_parser("simulate", help="write the files of one impact-test campaign")
     sim.add_argument("--scenario", required=True, choices=_scenario_names())
     sim.add_argument("--out", required=True, help="output folder")
-    sim.add_argument("--fe-max-hz", type=float, default=500.0, help="highest design FE mode exported (default 500)")
+    sim.add_argument("--fe-max-hz", type=float, default=500.0,
+                     help="highest truth mode synthesised and, by default, exported (default 500)")
+    sim.add_argument("--fe-export-hz", type=float, default=None,
+                     help="highest design FE mode exported if above --fe-max-hz (e.g. 2000: the basis structural "
+                          "modifications such as bearings need)")
     sim.add_argument("--seed", type=int, default=1863, help="random seed of hits and noise")
     sim.add_argument("--hits", type=int, default=6, help="hits per setup (>= 5)")
     sim.set_defaults(func=_cmd_simulate)
@@ -246,6 +273,7 @@ def build_parser() -> argparse.ArgumentParser:
     pair.add_argument("--mac-min", type=float, default=0.8)
     pair.add_argument("--out", required=True)
     pair.set_defaults(func=_cmd_pair)
+    add_diagnose_parser(lab_sub)
     add_model_commands(sub)
     return parser
 

@@ -135,6 +135,7 @@ from scipy.optimize import linear_sum_assignment
 from scipy.signal import find_peaks
 
 from ema.frf import FrequencyResponse
+from ema._blas import one_blas_thread
 from receptance.modal_model import ModalModel, ModelError
 
 __all__ = ["Comparison", "ComparisonError", "compare", "compare_frf", "frf_errors", "infer_body", "infer_side",
@@ -840,6 +841,7 @@ def _model_response(model, setup: str, k: int, H: FrequencyResponse, table: pd.D
                              exp_window_decay=H.exp_window_decay, history=Ms.history)
 
 
+@one_blas_thread
 def compare(model, measurements, *, band_hz: tuple[float, float] | None = (10.0, 500.0),
             bands: Sequence[float] | Sequence[tuple[float, float]] | None = None,
             bodies: Mapping[str, str] | Callable[[str], str] | None = None,

@@ -6,8 +6,18 @@ its parameters to the measured FRFs of all setups and scores the fit.
 Error measure.  For each channel ``c`` and octave band ``b`` the
 band-normalised complex error ``e_cb = ‖H_m − H_x‖_b / ‖H_x‖_b``; the summary
 error is ``E = sqrt(mean_cb e_cb²)`` (a misfit at 15 Hz, where the
-accelerance is small, counts as much as one at a 300 Hz resonance).  The
-fits minimise exactly this (least squares on the band-normalised residual).
+accelerance is small, counts as much as one at a 300 Hz resonance).
+
+Fitting.  The complex misfit of a stiffness is full of narrow valleys (a
+sharp mode sliding past a measured peak), so the parameters are fitted on
+smoothed log spectra: a coordinate search on sixth-octave levels finds the
+basin, a finer search and a bounded least-squares polish on 24th-octave
+levels place the modes.  The fit sees the physics alone (modes the effect
+creates keep their computed frequencies); the scored model then gives them
+the measured frequencies and damping of test-only modes nearby
+(:class:`~receptance.modal_model.ModalModel`, ``test_only``), as the hybrid
+model does for every paired mode.  Uncertainties come from the polish's
+Jacobian.
 
 Criterion.  The Bayesian information criterion over the ``N`` cells of
 channel × sixth-octave band (the resolution at which a modal effect shows;
@@ -36,7 +46,7 @@ from __future__ import annotations
 import functools
 import logging
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable, Sequence
 
 import numpy as np
@@ -44,6 +54,7 @@ import pandas as pd
 import scipy.optimize
 
 from ema.frf import FrequencyResponse
+from ema._blas import one_blas_thread
 from receptance.compare import band_errors, h1_variance
 from receptance.effects import EFFECTS, Effect, ExperimentalMode, Residuals
 from receptance.modal_model import ModalModel, ModelError
@@ -141,6 +152,7 @@ def _model_frfs(model: ModalModel, measurements: Sequence[Measurement]) -> list[
             for m in measurements]
 
 
+@one_blas_thread
 def misfit(model: ModalModel, measurements: Sequence[Measurement], *, bands=OCTAVES) -> Misfit:
     """Summary error ``E`` of ``model`` against ``measurements`` and its noise floor (module docstring)."""
     rows, brows = [], []
@@ -228,18 +240,9 @@ def _fixes(before: Misfit, after: Misfit) -> pd.DataFrame:
         ["setup", "channel", "band_lo_hz", "band_hi_hz", "rel_error_before", "rel_error_after", "improvement"]]
 
 
-def _residual_vector(model, measurements, stride: int) -> np.ndarray:
-    """Band-normalised residual: its squared norm is (N_bands E²) up to the line stride."""
-    out = []
-    for m, Hm in zip(measurements, _model_frfs(model, measurements)):
-        w, _ = m.band_weights()
-        d = ((Hm - m.frf.data[:, 0]) * w)[:, ::stride] * np.sqrt(stride)
-        out += [d.real.ravel(), d.imag.ravel()]
-    return np.concatenate(out)
-
-
+@one_blas_thread
 def fit_effect(effect: Effect, model: ModalModel, measurements: Sequence[Measurement], *,
-               before: Misfit | None = None, stride: int = 2) -> EffectFit:
+               before: Misfit | None = None) -> EffectFit:
     """Fit one effect's parameters (log scale, inside their bounds) and score it (module docstring)."""
     before = before or misfit(model, measurements)
     tables = [m.channels for m in measurements]
@@ -256,33 +259,44 @@ def fit_effect(effect: Effect, model: ModalModel, measurements: Sequence[Measure
     hi = np.log10([p.upper for p in params])
     x0 = np.log10([p.initial for p in params])
 
+    # the parameters are fitted on the physics alone: measured-only modes would otherwise capture the poles
+    # the effect creates and flatten the misfit around them (the final model gets them, see ModalModel._pin)
+    physics = replace(model, test_only=())
+
     def model_at(x):
-        return effect.apply(model, {p.name: 10 ** v for p, v in zip(params, x)}, tables)
+        return effect.apply(physics, {p.name: 10 ** v for p, v in zip(params, x)}, tables)
 
-    coarse = 4  # the smoothed levels need only every fourth line
-    smooth = _SmoothSpectra(measurements, stride=coarse)
-
-    def cost(x):
+    def frfs(x, stride):
         m = model_at(x)
-        return smooth.cost([m.frf_at_channels(ms.channels, ms.frf.freqs_hz[::coarse],
-                                              decay=ms.frf.exp_window_decay).data[:, 0] for ms in measurements])
+        return [m.frf_at_channels(ms.channels, ms.frf.freqs_hz[::stride], decay=ms.frf.exp_window_decay).data[:, 0]
+                for ms in measurements]
 
     # the complex misfit of a stiffness is full of narrow valleys (a sharp mode sliding past measured peaks);
-    # a coarse coordinate search on smoothed log spectra (sixth-octave RMS levels) finds the right basin,
-    # then a bounded least-squares polish on the complex misfit
+    # smoothed log spectra have broad basins: a coordinate search on sixth-octave levels finds the basin, a
+    # finer pass and a bounded least-squares polish on 24th-octave levels (3 % bands, a few half-power
+    # bandwidths of a 0.5 %-damped mode) place the new modes
+    coarse, fine = _SmoothSpectra(measurements, stride=4), _SmoothSpectra(measurements, per_octave=24, stride=2)
     x = x0.copy()
-    best = cost(x)
+    best = coarse.cost(frfs(x, 4))
     for _ in range(2):
         for i in range(len(params)):
             for v in np.linspace(lo[i], hi[i], 17):
                 trial = x.copy()
                 trial[i] = v
-                c = cost(trial)
+                c = coarse.cost(frfs(trial, 4))
                 if c < best:
                     best, x = c, trial
-    res = scipy.optimize.least_squares(lambda x: _residual_vector(model_at(x), measurements, stride), x,
-                                       bounds=(lo, hi), diff_step=1e-3, x_scale=1.0, max_nfev=40)
-    x = res.x
+    best = fine.cost(frfs(x, 2))
+    for i in range(len(params)):
+        for v in x[i] + np.linspace(-0.15, 0.15, 11):
+            trial = x.copy()
+            trial[i] = np.clip(v, lo[i], hi[i])
+            c = fine.cost(frfs(trial, 2))
+            if c < best:
+                best, x = c, trial
+    res = scipy.optimize.least_squares(lambda x: fine.residuals(frfs(x, 2)), x, bounds=(lo, hi), diff_step=1e-3,
+                                       x_scale=1.0, max_nfev=40)
+    x = res.x if fine.cost(frfs(res.x, 2)) <= best else x
     values = {p.name: float(10 ** v) for p, v in zip(params, x)}
     unc = {}
     try:
@@ -317,11 +331,13 @@ class _SmoothSpectra:
         np.add.at(p.T, idx[keep], (np.abs(H[:, keep]) ** 2).T)
         return 0.5 * np.log(np.maximum(p, 1e-300))
 
+    def residuals(self, frfs) -> np.ndarray:
+        """Level differences (natural log) over every channel and band."""
+        return np.concatenate([(self._levels(H, idx, keep, n) - ref).ravel()
+                               for (idx, keep, n), ref, H in zip(self.edges, self.levels, frfs)])
+
     def cost(self, frfs) -> float:
-        total = 0.0
-        for (idx, keep, n), ref, H in zip(self.edges, self.levels, frfs):
-            total += float(np.sum((self._levels(H, idx, keep, n) - ref) ** 2))
-        return total
+        return float(np.sum(self.residuals(frfs) ** 2))
 
 
 def _score(effect, values, unc, model, measurements, before, tables, *, params=(), x=None, lo=None, hi=None):
@@ -333,8 +349,8 @@ def _score(effect, values, unc, model, measurements, before, tables, *, params=(
     if params:
         hit = [p.name for p, v, a, b in zip(params, x, lo, hi) if v - a < 0.02 or b - v < 0.02]
         # a parameter the data cannot determine (e.g. a horizontal rig stiffness whose modes lie far below the
-        # band) drifts to a bound with a huge uncertainty: that is "not determined", not "implausible"
-        undetermined = tuple(n for n in hit if unc.get(n, np.inf) > 1.0)
+        # band) drifts, often to a bound, with a huge uncertainty: that is "not determined", not "implausible"
+        undetermined = tuple(p.name for p in params if unc.get(p.name, np.inf) > 1.0)
         at_bound = tuple(n for n in hit if n not in undetermined)
     note = ""
     if undetermined:
@@ -407,6 +423,7 @@ def _fit_experimental_mode(model, measurements, before: Misfit) -> ExperimentalM
     return ExperimentalMode(f_hz=f, zeta=z, constants=consts)
 
 
+@one_blas_thread
 def rank_effects(model: ModalModel, measurements: Sequence[Measurement], *,
                  catalogue: Sequence[Effect] | None = None, skip: Sequence[str] = (),
                  progress: Callable[[str], None] | None = None) -> tuple[Misfit, list[EffectFit]]:
@@ -464,6 +481,7 @@ class Diagnosis:
                 "initial": {"summary_error": self.initial.summary, "noise_floor": self.initial.noise_floor}}
 
 
+@one_blas_thread
 def diagnose(model: ModalModel, measurements: Sequence[Measurement], *, catalogue: Sequence[Effect] | None = None,
              max_effects: int = 3, progress: Callable[[str], None] | None = None) -> Diagnosis:
     """Find the missing effects one after the other (module docstring)."""

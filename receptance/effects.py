@@ -14,7 +14,7 @@ name                   physical  what it adds
 ``rig_suspension``     yes       soft springs to ground at the hanging points (crane, bungees)
 ``mass_loading``       yes       the accelerometers' mass at every sensor of a setup
 ``axlebox_bearing``    yes       the axlebox as its own rigid body on radial/axial/rocking springs
-``wheel_seat_joint``   yes       the wheel's hub on rocking/radial springs instead of a rigid seat
+``wheel_seat_joint``   yes       the wheel's hub on rocking/radial/axial/torsional springs (press fit)
 ``primary_suspension`` yes       Table 2.1 springs and dampers at the axleboxes (in service)
 ``residuals``          patch     lower and upper residual terms per channel (out-of-band modes)
 ``experimental_mode``  patch     a measured mode the FE lacks, with its measured modal constants
@@ -330,34 +330,42 @@ class PrimarySuspensionEffect(Effect):
 @register_effect
 @dataclass(frozen=True)
 class WheelSeatJoint(Effect):
-    """Press-fit compliance: each wheel's hub rocks on springs about its seat instead of being rigid on it.
+    """Press-fit compliance: each wheel's hub on rocking, radial, axial and torsional springs to its seat.
 
-    The wheel's rigid motion becomes a body (its mass and inertia about the
-    hub taken off the FE seat, as for the bearing); its own elastic
-    deformation stays in the FE modes.  ``mass``/``inertia`` describe one
-    wheel (Table 2.1); the wheel's sensors and contact point move with the
-    body.  ``wheel_nodes`` picks the FE nodes of the wheel: those within
+    Floating frame at the hub: the wheel's rigid motion becomes a body (its
+    mass and inertia about the hub taken off the FE seat, as for the
+    bearing) and its elastic deformation relative to the hub stays in the FE
+    modes.  The two exchange inertia — the web and rim moving relative to the
+    hub carry momentum (the umbrella mode pushes the hub along the axle) —
+    and a modal export has no mass matrix, so the wheel's masses are lumped
+    from what its drawing gives: ``rim_mass`` on the outermost node ring,
+    ``web_mass`` over the rings by tributary annulus, the rest of ``mass``
+    (Table 2.1: 251 kg) on the rigid hub.  The wheel's sensors and contact
+    point move with the body.  The wheel's FE nodes are those within
     ``half_width`` of the hub plane and outside ``seat_radius``.
     """
 
     name: ClassVar[str] = "wheel_seat_joint"
-    summary: ClassVar[str] = "wheel-seat press-fit compliance (rocking and radial)"
+    summary: ClassVar[str] = "wheel-seat press-fit compliance (rocking, radial, axial, torsional)"
     sides: tuple[str, ...] = ("L", "R")
-    mass: float = 125.5
-    inertia: tuple[float, float, float] = (6.0, 11.0, 6.0)
+    mass: float = 251.0
+    rim_mass: float = 150.0
+    web_mass: float = 80.0
     half_width: float = 0.08
     seat_radius: float = 0.09
 
     def parameters(self) -> tuple[Parameter, ...]:
         return (Parameter("rocking_Nm_per_rad", "N m/rad", 1e6, 1e10, 3e8, "rocking stiffness of one seat"),
-                Parameter("radial_N_per_m", "N/m", 1e8, 1e11, 5e9, "radial stiffness of one seat"))
+                Parameter("radial_N_per_m", "N/m", 1e8, 1e11, 5e9, "radial stiffness of one seat"),
+                Parameter("axial_N_per_m", "N/m", 1e7, 1e11, 3e9, "axial stiffness of one seat"),
+                Parameter("torsional_Nm_per_rad", "N m/rad", 1e6, 1e10, 5e8, "torsional stiffness of one seat"))
 
     def apply(self, model, values, setups=()):
         v = self._values(values)
         names = [f"contact_{s}" for s in self.sides]
         _points(model, names)
         fe = model.fe
-        hubs, seats, centres, carried, extra = [], [], [], [], []
+        hubs, seats, centres, carried, extra, inertias, couplings = [], [], [], [], [], [], []
         for s, name in zip(self.sides, names):
             y_plane = float(model.points[name].xyz[1]) if model.points[name].xyz is not None else \
                 float(fe.xyz[fe.index(model.points[name].fe_node), 1])
@@ -374,25 +382,69 @@ class WheelSeatJoint(Effect):
                                  f"y = {y_plane:.3f} m")
             hub_y = float(shared[np.argmin(np.abs(shared - y_plane))])
             pair = near[np.abs(fe.xyz[near, 1] - hub_y) < 1e-6]
-            ring = (np.abs(fe.xyz[:, 1] - hub_y) < self.half_width) & (
-                np.hypot(fe.xyz[:, 0], fe.xyz[:, 2]) > self.seat_radius)
+            ring = np.flatnonzero((np.abs(fe.xyz[:, 1] - hub_y) < self.half_width) & (
+                np.hypot(fe.xyz[:, 0], fe.xyz[:, 2]) > self.seat_radius))
             # the node of the pair that the wheel nodes are not: heuristically the higher label is the hub
             seat, hub = sorted(int(n) for n in fe.node_ids[pair[:2]])
+            centre = np.array([0.0, hub_y, 0.0])
+            masses = self._node_masses(fe.xyz[ring] - centre)
+            inertias.append(_lumped_inertia(masses, fe.xyz[ring] - centre))
+            couplings.append(_deformation_momentum(fe, ring, fe.index(hub), masses, centre))
             hubs.append(hub)
             seats.append(seat)
-            centres.append((0.0, float(hub_y), 0.0))
+            centres.append(tuple(centre))
             carried.append(tuple(int(n) for n in fe.node_ids[ring]) + (hub,))
-            extra.append(Point(f"seat_{s}", seat, (0.0, float(hub_y), 0.0)))
+            extra.append(Point(f"seat_{s}", seat, tuple(centre)))
         mod = SeatJoints(sides=self.sides, hub_nodes=tuple(hubs), seat_nodes=tuple(seats), centres=tuple(centres),
-                         carried=tuple(carried), mass=self.mass, inertia=tuple(self.inertia),
-                         rocking=v["rocking_Nm_per_rad"], radial=v["radial_N_per_m"])
+                         carried=tuple(carried), mass=self.mass, inertias=tuple(inertias),
+                         coupling=tuple(couplings), rocking=v["rocking_Nm_per_rad"], radial=v["radial_N_per_m"],
+                         axial=v["axial_N_per_m"], torsional=v["torsional_Nm_per_rad"])
         return model.with_points(extra).with_modification(mod)
+
+    def _node_masses(self, rel: np.ndarray) -> np.ndarray:
+        """Lumped masses of the wheel's nodes: the rim's mass on the outermost ring; the web's (a plate of even
+        thickness) by each ring's tributary annulus between the midpoints to its neighbours.  The hub's own mass
+        (the rest of ``mass``) moves rigidly with it."""
+        r = np.round(np.hypot(rel[:, 0], rel[:, 2]), 4)
+        rings = np.unique(r)
+        edges = np.concatenate([[rings[0]], 0.5 * (rings[1:] + rings[:-1]), [rings[-1]]])
+        area = np.diff(edges**2)
+        m = np.zeros(r.size)
+        for k, ring in enumerate(rings):
+            on = r == ring
+            m[on] = (self.web_mass * area[k] / area.sum() + (self.rim_mass if k == rings.size - 1 else 0.0)) / on.sum()
+        return m
+
+
+def _lumped_inertia(masses: np.ndarray, rel: np.ndarray) -> tuple[float, float, float]:
+    """Principal inertia (about x, y, z through the hub) of point masses at ``rel``."""
+    x, y, z = rel.T
+    return (float(np.sum(masses * (y**2 + z**2))), float(np.sum(masses * (x**2 + z**2))),
+            float(np.sum(masses * (x**2 + y**2))))
+
+
+def _deformation_momentum(fe, nodes: np.ndarray, hub: int, masses: np.ndarray, centre: np.ndarray) -> tuple:
+    """G (6 x modes): linear and angular momentum about the hub of each FE mode's deformation of the wheel
+    relative to the hub's rigid motion, Σ m_i [d_i; r_i × d_i] — the inertial coupling between the wheel's
+    rigid motion and its elastic deformation that a floating frame at the hub must keep."""
+    rel = fe.xyz[nodes] - fe.xyz[hub]
+    u = fe.shapes[:, nodes, :3]  # (modes, nodes, 3)
+    hub_t, hub_r = fe.shapes[:, hub, :3], fe.shapes[:, hub, 3:6]
+    d = u - hub_t[:, None, :] - np.cross(hub_r[:, None, :], rel[None, :, :])
+    lin = np.einsum("j,mjk->km", masses, d)
+    arm = fe.xyz[nodes] - centre
+    ang = np.einsum("j,mjk->km", masses, np.cross(arm[None, :, :], d))
+    return tuple(map(tuple, np.vstack([lin, ang])))
 
 
 @register
 @dataclass(frozen=True)
 class SeatJoints(Modification):
-    """Wheels on compliant seats (see :class:`WheelSeatJoint`); the wheel's rigid motion is a body."""
+    """Wheels on compliant seats (see :class:`WheelSeatJoint`); the wheel's rigid motion is a body.
+
+    ``coupling`` holds per side the 6 x modes matrix of the wheel deformation's momentum about the hub (in the
+    FE modes' coordinates): with it the body and the FE deformation exchange inertia as they do in the FE.
+    """
 
     kind: ClassVar[str] = "seat_joints"
     in_test: ClassVar[bool] = True
@@ -401,22 +453,34 @@ class SeatJoints(Modification):
     seat_nodes: tuple[int, ...] = ()
     centres: tuple = ()
     carried: tuple = ()
-    mass: float = 125.5
-    inertia: tuple[float, float, float] = (6.0, 11.0, 6.0)
+    mass: float = 251.0
+    inertias: tuple = ()
+    coupling: tuple = ()
     rocking: float = 3e8
     radial: float = 5e9
+    axial: float = 3e9
+    torsional: float = 5e8
     loss_factor: float = 0.01
 
     def bodies(self) -> tuple[RigidBody, ...]:
-        return tuple(RigidBody(f"wheel_body_{s}", self.mass, tuple(self.inertia), tuple(c), tuple(nodes), hub)
-                     for s, c, nodes, hub in zip(self.sides, self.centres, self.carried, self.hub_nodes))
+        return tuple(RigidBody(f"wheel_body_{s}", self.mass, tuple(i), tuple(c), tuple(nodes), hub)
+                     for s, c, nodes, hub, i in zip(self.sides, self.centres, self.carried, self.hub_nodes,
+                                                   self.inertias))
 
     def terms(self, rows) -> list[Term]:
-        # axial and torsional stay stiff (the press fit does not slip): ten times the radial value per metre
-        k = dict(x=self.radial, y=10 * self.radial, z=self.radial, rx=self.rocking, ry=10 * self.rocking,
-                 rz=self.rocking)
-        return [t for s in self.sides for t in _detached_body_terms(
-            rows, f"seat_{s}", f"wheel_body_{s}", self.mass, self.inertia, k, self.loss_factor)]
+        k = dict(x=self.radial, y=self.axial, z=self.radial, rx=self.rocking, ry=self.torsional, rz=self.rocking)
+        out = []
+        axes = ("x", "y", "z", "rx", "ry", "rz")
+        for s, inertia, G in zip(self.sides, self.inertias, self.coupling):
+            out += _detached_body_terms(rows, f"seat_{s}", f"wheel_body_{s}", self.mass, inertia, k,
+                                        self.loss_factor)
+            rel = rows([f"wheel_body_{s}:{a}" for a in axes]) - rows([f"seat_{s}:{a}" for a in axes])
+            G = np.asarray(G, float)
+            dq = np.zeros_like(rel)
+            dq[:, :G.shape[1]] = G
+            out.append(Term(np.vstack([rel, dq]), M=np.block([[np.zeros((6, 6)), np.eye(6)],
+                                                              [np.eye(6), np.zeros((6, 6))]])))
+        return out
 
 
 @register_effect

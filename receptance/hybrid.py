@@ -124,6 +124,7 @@ def hybrid_model(
     default_zeta: float = DEFAULT_ZETA,
     rigid_below_hz: float = RIGID_BELOW_HZ,
     name: str = "hybrid model",
+    max_hz: float | None = None,
 ) -> ModalModel:
     """Build the hybrid modal model from a pairing (thesis §2.3 and Table 3.1).
 
@@ -145,6 +146,12 @@ def hybrid_model(
     rigid_below_hz : float
         FE modes below this frequency are rigid-body modes (frequency set to 0).
     name : str
+    max_hz : float, optional
+        Highest mode frequency the model reports (see
+        :attr:`ModalModel.max_hz`).  With ``keep_fe="all"`` and an FE export
+        reaching a few times the test band, set it to the band's top: the FE
+        modes above serve as the basis of structural modifications (bearings,
+        joints) without adding out-of-band terms the test band does not hold.
 
     Returns
     -------
@@ -227,6 +234,7 @@ def hybrid_model(
                   source=fe.source, format=fe.format, units=fe.units, history=fe.history)
     n_test = sum(origin[j] == "test" for j in kept)
     return ModalModel(sub, freqs[kept], zeta[kept], tuple(origin[j] for j in kept), kept + 1, test_mode[kept],
-                      points=points or {}, name=name,
+                      points=points or {}, name=name, max_hz=max_hz,
+                      test_only=tuple(zip(test_only["f_test_hz"].astype(float), test_only["zeta"].astype(float))),
                       history=(f"hybrid model from {fe.source or 'FE modes'}: {n_test} modes with test frequency and "
                                f"damping, {sum(origin[j] == 'fe' for j in kept)} FE-only, {len(rigid)} rigid",))

@@ -14,6 +14,15 @@ modification touches keep their closed-form modal terms; the touched ones
 gives a mass line and whose remainder is diagonalised in first-order
 (state-space) form.  Receptances at any set of frequencies are then one
 vectorised evaluation.
+
+Effects present during the test (rig springs, sensor masses, bearings,
+press fits) are already in the measured frequencies.  The modified system
+is then solved from the design model — FE frequencies plus the effect: the
+physics — and every pole that carries a measured mode (a paired FE mode,
+or a mode the effect creates near a measured mode without FE partner) is
+given the test's frequency and damping, as the hybrid model does for
+unmodified modes.  ``max_hz`` keeps the model to the test band while FE
+modes above it remain the basis of the modifications.
 """
 
 from __future__ import annotations
@@ -25,6 +34,7 @@ from typing import Mapping, Sequence
 import numpy as np
 import pandas as pd
 import scipy.linalg
+import scipy.optimize
 
 from ema.frf import QUANTITIES, FrequencyResponse
 from fem_import.modes import FEModes
@@ -39,7 +49,9 @@ log = logging.getLogger("receptance")
 #: where a mode's frequency and damping come from
 ORIGINS = ("test", "fe", "rigid")
 _BODY_AXES = {"x": 0, "y": 1, "z": 2, "rx": 3, "ry": 4, "rz": 5}
-_DECOUPLED = 1e-9  # coupling below this fraction of a coordinate's own scale leaves it a plain modal term
+_DECOUPLED = 1e-9
+#: a mode an effect creates takes a measured-only mode's frequency and damping within this relative distance
+TEST_ONLY_RTOL = 0.03  # coupling below this fraction of a coordinate's own scale leaves it a plain modal term
 
 
 class ModelError(ValueError):
@@ -115,6 +127,20 @@ class ModalModel:
         Applied in order; see :meth:`with_modification`.
     name : str
     history : tuple of str
+    channel_terms : tuple of ChannelTerms
+        Residual / measured-only-mode terms at measured channels.
+    max_hz : float or None
+        Modes of the (modified) model above this frequency are left out of
+        its receptances: the model holds the modes of the test band (thesis
+        Table 3.1) and out-of-band modes are the residuals' business.  FE
+        modes above it still serve as the basis in which structural
+        modifications are solved — a local modification (a bearing, a joint)
+        needs them.  None keeps every mode.
+    test_only : tuple of (float, float)
+        Measured modes without an FE partner, ``(f_hz, zeta)``.  An effect
+        that creates a mode the FE lacks (the axlebox rocking on its bearing)
+        gives that mode the measured frequency and damping when one lies
+        close (see :meth:`_pin`), as the hybrid model does for paired modes.
     """
 
     fe: FEModes
@@ -128,6 +154,8 @@ class ModalModel:
     name: str = "hybrid model"
     history: tuple[str, ...] = ()
     channel_terms: tuple[ChannelTerms, ...] = ()
+    max_hz: float | None = None
+    test_only: tuple[tuple[float, float], ...] = ()
 
     def __post_init__(self) -> None:
         m = len(self.fe)
@@ -150,6 +178,8 @@ class ModalModel:
         if not self.fe.has_rotations:
             log.info("%s: FE shapes without rotations; off-node points and rotational DOFs are unavailable",
                      self.fe.source or "model")
+        if self.max_hz is not None and not (np.isfinite(self.max_hz) and self.max_hz > 0):
+            raise ModelError(f"max_hz must be a positive frequency in Hz or None, got {self.max_hz!r}")
         for mod in self.modifications:
             if not isinstance(mod, Modification):
                 raise ModelError(f"modifications must be Modification instances, got {type(mod).__name__}")
@@ -162,6 +192,7 @@ class ModalModel:
         object.__setattr__(self, "modifications", tuple(self.modifications))
         object.__setattr__(self, "history", tuple(self.history))
         object.__setattr__(self, "channel_terms", tuple(self.channel_terms))
+        object.__setattr__(self, "test_only", tuple((float(f), float(z)) for f, z in self.test_only))
 
     # ------------------------------------------------------------------ views
     def __len__(self) -> int:
@@ -195,6 +226,27 @@ class ModalModel:
             raise ModelError(f"expected a Modification, got {type(modification).__name__}")
         return replace(self, modifications=self.modifications + (modification,),
                        history=self.history + (f"+ {modification.describe()}",))
+
+    def with_effect(self, effect, values: Mapping[str, float] | None = None, setups: Sequence = ()
+                    ) -> "ModalModel":
+        """A new model with a catalogued physical effect added (:mod:`receptance.effects`).
+
+        Parameters
+        ----------
+        effect : Effect or EffectFit
+            An effect with its parameter ``values``, or a fit from
+            :func:`receptance.diagnose.fit_effect` / ``diagnose`` (its fitted
+            values are used).
+        values : dict, optional
+            Parameter values by name (see ``effect.parameters()``).
+        setups : sequence of DataFrame, optional
+            The tests' channel tables (effects at the sensors need them).
+        """
+        if values is None and hasattr(effect, "effect") and hasattr(effect, "params"):
+            effect, values = effect.effect, effect.params
+        if not hasattr(effect, "apply"):
+            raise ModelError(f"expected a catalogued effect (receptance.effects), got {type(effect).__name__}")
+        return effect.apply(self, dict(values or {}), setups)
 
     def without_modifications(self) -> "ModalModel":
         """The bare modal model (free-free hybrid model): no modifications, no channel terms."""
@@ -292,9 +344,34 @@ class ModalModel:
     # ---------------------------------------------------------------- solving
     def system(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Mass, damping and stiffness matrices in the model's coordinates (eq. 2.29 plus modifications)."""
+        return self._system(self.freqs_hz)
+
+    @property
+    def base_freqs_hz(self) -> np.ndarray:
+        """Frequencies the modified system is solved with.
+
+        When :attr:`pins_test_modes` holds, test-origin modes enter with their
+        FE frequencies: the test's frequencies already contain the effects
+        being added, so the coupled solve starts from the design model (FE +
+        effect: the physics) and the poles that carry a test mode are moved
+        back to the test's values afterwards (:meth:`_pin`).
+        """
+        if not self.pins_test_modes:
+            return self.freqs_hz
+        base = self.freqs_hz.copy()
+        f_fe = self.fe.freqs_hz
+        test = np.flatnonzero([o == "test" for o in self.origin])
+        # a degenerate FE pair the test split (two planes, two frequencies) keeps the test's relative split,
+        # so that the coupled modes stay aligned with the pair's rotated members instead of arbitrary mixtures
+        for j in test:
+            cluster = test[np.abs(f_fe[test] - f_fe[j]) <= 1e-6 * f_fe[j]]
+            base[j] = f_fe[j] * self.freqs_hz[j] / self.freqs_hz[cluster].mean()
+        return base
+
+    def _system(self, freqs_hz: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         m = len(self)
         n = self.n_coordinates
-        w = 2 * np.pi * self.freqs_hz
+        w = 2 * np.pi * np.asarray(freqs_hz, float)
         M = np.zeros((n, n))
         C = np.zeros((n, n))
         K = np.zeros((n, n), complex)
@@ -344,12 +421,13 @@ class ModalModel:
         in_dofs = [self.dof(s) for s in (in_specs if not isinstance(in_specs, (str, Dof, int)) else [in_specs])]
         To, Ti = self._rows_of(out_dofs), self._rows_of(in_dofs)
         labels_o, labels_i = tuple(d.label for d in out_dofs), tuple(d.label for d in in_dofs)
-        M, C, K = self.system()
+        base = self.base_freqs_hz
+        M, C, K = self._system(base)
         m = len(self)
         n = M.shape[0]
         # a modal coordinate no modification couples stays a closed-form modal term (exact, and keeps
         # repeated eigenvalues such as degenerate bending pairs out of the state-space eigensolver)
-        w = 2 * np.pi * self.freqs_hz
+        w = 2 * np.pi * base
         dM, dC, dK = M.copy(), C.copy(), K.copy()
         dM[:m, :m] -= np.eye(m)
         dC[:m, :m] -= np.diag(2 * self.zeta * w)
@@ -361,6 +439,8 @@ class ModalModel:
                    | (np.abs(dM).max(axis=1, initial=0) > _DECOUPLED))
         touched[m:] = True
         free = np.flatnonzero(~touched)
+        if self.max_hz is not None:
+            free = free[self.freqs_hz[free] <= self.max_hz]
         pr = PoleResidues.from_modes(self.freqs_hz[free], self.zeta[free], To[:, free], Ti[:, free], labels_o,
                                      labels_i)
         sel = np.flatnonzero(touched)
@@ -370,6 +450,9 @@ class ModalModel:
                                                            K[np.ix_(sel, sel)], To[:, sel], Ti[:, sel])
         if self.pins_test_modes:
             poles, residues = self._pin(poles, residues, sel, share)
+        if self.max_hz is not None:
+            inside = np.abs(poles) <= 2 * np.pi * self.max_hz
+            poles, residues = poles[inside], residues[:, :, inside]
         return PoleResidues(np.concatenate([pr.poles, poles]), np.concatenate([pr.residues, residues], axis=2),
                             pr.mass_line + mass_line, labels_o, labels_i,
                             history=(f"{self.name}: {free.size} modal terms + {sel.size} coupled coordinates "
@@ -389,10 +472,17 @@ class ModalModel:
         return bool(self.modifications) and all(getattr(m, "in_test", False) for m in self.modifications)
 
     def _pin(self, poles, residues, sel, share):
-        """Move poles dominated by test-origin modal coordinates back to their test frequency and damping.
+        """Give the poles that carry a measured mode its test frequency and damping.
 
-        Coordinates with the same test frequency and damping (a degenerate cluster) count together: a
-        modification mixes the members of such a cluster, and the mode still belongs to it.
+        First the paired modes: each test mode (coordinates with the same test
+        frequency and damping form one group — a degenerate cluster, which a
+        modification mixes) claims as many poles as it has coordinates, by a
+        one-to-one assignment maximising the group's kinetic-energy share in
+        the poles; a pole with less than a third of its energy in the group is
+        no partner (the effect has turned that mode into another one).  Then
+        each remaining pole takes the measured mode without FE partner
+        (:attr:`test_only`) nearest in frequency, if within
+        :data:`TEST_ONLY_RTOL`.
         """
         poles = poles.copy()
         residues = residues.copy()
@@ -401,17 +491,43 @@ class ModalModel:
         for j, c in enumerate(sel):
             if c < m and self.origin[c] == "test":
                 groups.setdefault((self.freqs_hz[c], self.zeta[c]), []).append(j)
-        for k in range(poles.size):
-            if poles[k].imag == 0 or not groups:
-                continue
-            key, rows = max(groups.items(), key=lambda kv: share[kv[1], k].sum())
-            if share[rows, k].sum() <= 0.5:
-                continue
-            w, z = 2 * np.pi * key[0], key[1]
-            new = -z * w + 1j * np.sign(poles[k].imag) * w * np.sqrt(1 - z * z)
-            # keep the mass-normalised shape: the residue of a pair scales with 1 / Im(pole)
-            residues[:, :, k] *= poles[k].imag / new.imag
-            poles[k] = new
+        upper = np.flatnonzero(poles.imag > 0)
+        if upper.size == 0:
+            return poles, residues
+        targets: dict[int, tuple[float, float]] = {}
+        if groups:
+            # energy shares among the FE coordinates only: an added body (a wheel on its seat) may carry most
+            # of a mode's kinetic energy while the FE coordinate still says which mode it is
+            fe_rows = np.flatnonzero(np.asarray(sel) < m)
+            fe_share = share / np.maximum(share[fe_rows].sum(axis=0, keepdims=True), np.finfo(float).tiny)
+            f_pole = np.abs(poles[upper]) / (2 * np.pi)
+            slots = [key for key, rows in groups.items() for _ in rows]
+            gain = np.array([[fe_share[groups[key], k].sum() for k in upper] for key in slots])
+            # among equally owned poles the one nearest the test frequency is the partner
+            gain = gain - 0.5 * np.abs(np.log(np.array([f for f, _ in slots])[:, None] / f_pole[None, :]))
+            for r, c in zip(*scipy.optimize.linear_sum_assignment(-gain)):
+                if gain[r, c] >= 1 / 3:
+                    targets[int(upper[c])] = slots[r]
+        free = np.array([k for k in upper if k not in targets], int)
+        if self.test_only and free.size:
+            # nearest measured mode; not one-to-one: a test sees one mode where a symmetric part has two
+            # (the axlebox rocking about x and about z)
+            f_pole = np.abs(poles[free]) / (2 * np.pi)
+            f_test = np.array([f for f, _ in self.test_only])
+            dist = np.abs(np.log(f_test[:, None] / f_pole[None, :]))
+            nearest = dist.argmin(axis=0)
+            for c, r in enumerate(nearest):
+                if dist[r, c] <= np.log1p(TEST_ONLY_RTOL):
+                    targets[int(free[c])] = self.test_only[r]
+        for k, (f, z) in targets.items():
+            w = 2 * np.pi * f
+            new = -z * w + 1j * w * np.sqrt(1 - z * z)
+            # the conjugate partner moves with it; the residue of a pair scales with 1 / Im(pole) so that
+            # the mass-normalised shape is kept
+            partner = int(np.argmin(np.abs(poles - np.conj(poles[k]))))
+            for idx, target in ((k, new), (partner, np.conj(new))):
+                residues[:, :, idx] *= poles[idx].imag / target.imag
+                poles[idx] = target
         return poles, residues
 
     # ------------------------------------------------------------- responses

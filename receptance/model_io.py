@@ -10,6 +10,8 @@ key                shape / type           content
                                           xyz}}, "modifications": [{"kind", ...params}],
                                           "channel_terms": [{"kind", "setup", "lower", "upper",
                                           "modes"}] (complex values as [re, im]),
+                                          "max_hz" (null: every mode), "test_only":
+                                          [[f_hz, zeta], ...] (measured modes without FE partner),
                                           "history": [...], "fe_source", "fe_format",
                                           "fe_units", "fe_history": [...], "created"}``
 ``node_ids``       int64 (n,)             FE node labels
@@ -71,6 +73,8 @@ def save_model(model: ModalModel, path: str | Path) -> Path:
                    for n, p in model.points.items()},
         "modifications": [m.to_dict() for m in model.modifications],
         "channel_terms": [_terms_to_json(t) for t in model.channel_terms],
+        "max_hz": model.max_hz,
+        "test_only": [list(t) for t in model.test_only],
         "history": list(model.history),
         "fe_source": fe.source,
         "fe_format": fe.format,
@@ -158,7 +162,8 @@ def load_model(path: str | Path) -> ModalModel:
         terms = tuple(_terms_from_json(t) for t in header.get("channel_terms", []))
         return ModalModel(fe, arrays["freqs_hz"], arrays["zeta"], tuple(header["origin"]), arrays["fe_mode"],
                           arrays["test_mode"], points=points, modifications=mods, name=header.get("name", ""),
-                          channel_terms=terms,
+                          channel_terms=terms, max_hz=header.get("max_hz"),
+                          test_only=tuple(tuple(t) for t in header.get("test_only", ())),
                           history=tuple(header.get("history", ())) + (f"read from {path}",))
     except (ModificationError, ValueError, KeyError, TypeError) as exc:
         raise ModelFileError(f"{path}: inconsistent hybrid-model file: {exc}") from exc

@@ -168,6 +168,22 @@ def test_bad_configuration_is_refused_with_a_clear_message():
     # an export frequency right on a mode would split a cluster between truth and export
     with pytest.raises(ValueError, match="truncation frequency 424.6"):
         plan_campaign(CampaignConfig(fe_max_hz=424.6))
+    with pytest.raises(ValueError, match="fe_export_hz .* must be >= fe_max_hz"):
+        CampaignConfig(fe_export_hz=400.0)
+
+
+def test_a_richer_fe_export_leaves_the_truth_in_the_band():
+    """fe_export_hz=2000: the design export holds the modes to 2 kHz (a basis for structural modifications),
+    the truth and its test still stop at 500 Hz, and the exported modes below 500 Hz are the default ones."""
+    rich = plan_campaign(CampaignConfig(scenario="bearing", fe_export_hz=2000.0))
+    plain = plan_campaign(CampaignConfig(scenario="bearing"))
+    assert rich.export_freqs_hz.max() <= 2000.0 and rich.export_freqs_hz.max() > 1500.0
+    assert plain.export_freqs_hz.max() <= 500.0
+    n = plain.export_freqs_hz.size
+    np.testing.assert_allclose(rich.export_freqs_hz[:n], plain.export_freqs_hz, rtol=1e-9)
+    assert rich.export_freqs_hz[n] > 500.0
+    np.testing.assert_allclose(rich.truth.modes.freqs_hz, plain.truth.modes.freqs_hz, rtol=1e-9)
+    assert rich.truth.modes.freqs_hz.max() <= 500.0
 
 
 def test_manifest_is_plain_json(control_dir):

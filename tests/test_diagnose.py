@@ -24,11 +24,13 @@ from test_hybrid_model import truth_pairing
 
 
 def _campaign(scenario):
-    folder = campaign_dir(scenario)
+    # the FE export reaches 2 kHz (the basis local modifications need); the model reports modes up to the
+    # 500 Hz test band, like the truth synthesis
+    folder = campaign_dir(scenario, fe_export_hz=2000.0)
     manifest = json.loads((folder / "truth.json").read_text())
     fe = fem_import.read(folder / "fe_design.uff")
     model = hybrid_model(fe, truth_pairing(manifest, "flexural", fe=fe, folder=folder),
-                         points=read_points(folder / "points.csv"))
+                         points=read_points(folder / "points.csv"), keep_fe="all", max_hz=500.0)
     meas = []
     for setup in ("flexural", "torsional"):
         H = estimate_frf(read_hammer(folder / f"{setup}.uff", folder / f"{setup}_channels.csv"))
@@ -75,14 +77,20 @@ def test_compliant_parts_reach_their_rigid_limit(rig):
     tables = [m.channels for m in meas]
     one = [meas[0]]
     base = misfit(model, one).summary
-    joint = WheelSeatJoint().apply(model, {"rocking_Nm_per_rad": 1e12, "radial_N_per_m": 1e13}, tables)
+    stiff = {"rocking_Nm_per_rad": 1e12, "radial_N_per_m": 1e13, "axial_N_per_m": 1e13,
+             "torsional_Nm_per_rad": 1e12}
+    joint = WheelSeatJoint().apply(model, stiff, tables)
     assert misfit(joint, one).summary == pytest.approx(base, rel=0.01)
-    assert misfit(WheelSeatJoint().apply(model, {"rocking_Nm_per_rad": 1e8, "radial_N_per_m": 1e10}, tables),
-                  one).summary > 1.5 * base
+    soft = dict(stiff, rocking_Nm_per_rad=1e7, radial_N_per_m=1e9)
+    assert misfit(WheelSeatJoint().apply(model, soft, tables), one).summary > 1.5 * base
     bearing = AxleboxBearing(inertia=(0.85, 1.3, 0.85)).apply(
         model, {"radial_N_per_m": 1e13, "axial_N_per_m": 1e13, "rocking_Nm_per_rad": 1e11, "right_over_left": 1.0},
         tables)
     assert misfit(bearing, one).summary == pytest.approx(base, rel=0.05)
+    # model.with_effect is the same operation
+    again = model.with_effect(AxleboxBearing(inertia=(0.85, 1.3, 0.85)), {
+        "radial_N_per_m": 1e13, "axial_N_per_m": 1e13, "rocking_Nm_per_rad": 1e11, "right_over_left": 1.0}, tables)
+    assert misfit(again, one).summary == misfit(bearing, one).summary
 
 
 def test_rig_springs_are_found_first_with_their_stiffness(rig):
@@ -144,3 +152,55 @@ def test_control_has_no_significant_effect():
     assert result.unexplained == ()
     m = misfit(model, meas)
     assert m.summary < 2 * m.noise_floor
+
+
+@pytest.mark.slow
+def test_compliant_bearings_are_found_with_their_stiffness():
+    """'bearing': axleboxes on bearings (radial 1e9, axial 2.5e8, rocking 5e6, right 15 % stiffer). The fitted
+    stiffnesses land within 25 % (the rocking one absorbs the catalogue's default axlebox inertia, 0.9/1.2 vs the
+    lab's 0.85/1.3 kg m²) and the error falls by more than half."""
+    model, meas, manifest = _campaign("bearing")
+    truth = manifest["scenario"]["effects"]["bearing"]
+    result = diagnose(model, meas, max_effects=1)
+    first = result.rounds[0][0]
+    assert first.name == "axlebox_bearing" and [f.name for f in result.accepted] == ["axlebox_bearing"]
+    for name in ("radial_N_per_m", "axial_N_per_m", "rocking_Nm_per_rad"):
+        assert first.params[name] == pytest.approx(truth[name], rel=0.25), name
+    assert first.params["right_over_left"] == pytest.approx(truth["right_over_left"], rel=0.25)
+    assert result.final.summary < 0.5 * result.initial.summary
+
+
+@pytest.mark.slow
+def test_wheel_seat_compliance_is_found():
+    """'joint': press fit with rocking 6e7, radial 2e9, axial 1e9, torsional 2e8. The floating-frame wheel with
+    its deformation momentum (lumped from the wheel's rim and web masses) reproduces the lowered bending and
+    umbrella modes; the fit finds the joint first and the error falls to the noise floor. The axial stiffness
+    is only loosely determined (it moves the umbrella mode, whose frequency the model takes from the test), so
+    it is held to a factor of three."""
+    model, meas, manifest = _campaign("joint")
+    truth = manifest["scenario"]["effects"]["joint"]
+    result = diagnose(model, meas, max_effects=1)
+    first = result.rounds[0][0]
+    assert first.name == "wheel_seat_joint" and [f.name for f in result.accepted] == ["wheel_seat_joint"]
+    for name in ("rocking_Nm_per_rad", "radial_N_per_m", "torsional_Nm_per_rad"):
+        assert first.params[name] == pytest.approx(truth[name], rel=0.25), name
+    assert 1 / 3 < first.params["axial_N_per_m"] / truth["axial_N_per_m"] < 3
+    assert result.final.summary < 0.5 * result.initial.summary
+    assert result.final.summary < 1.2 * result.final.noise_floor
+
+
+@pytest.mark.slow
+def test_two_hidden_effects_are_found_one_after_the_other():
+    """'bearing_rig': compliant bearings and crane springs. The bearings explain most of the error and come
+    first; diagnosing the improved model then finds the crane springs; the error ends at the noise floor."""
+    model, meas, manifest = _campaign("bearing_rig")
+    truth = manifest["scenario"]["effects"]
+    result = diagnose(model, meas, max_effects=3)
+    assert [f.name for f in result.accepted] == ["axlebox_bearing", "rig_suspension"]
+    bearing, rig = result.accepted
+    assert bearing.params["radial_N_per_m"] == pytest.approx(truth["bearing"]["radial_N_per_m"], rel=0.25)
+    assert bearing.params["rocking_Nm_per_rad"] == pytest.approx(truth["bearing"]["rocking_Nm_per_rad"], rel=0.25)
+    assert rig.params["vertical_N_per_m"] == pytest.approx(truth["rig"]["vertical_N_per_m"], rel=0.25)
+    assert rig.error_before == pytest.approx(bearing.error_after)
+    assert result.final.summary < 1.2 * result.final.noise_floor
+    assert result.unexplained == ()
