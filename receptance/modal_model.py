@@ -49,9 +49,9 @@ log = logging.getLogger("receptance")
 #: where a mode's frequency and damping come from
 ORIGINS = ("test", "fe", "rigid")
 _BODY_AXES = {"x": 0, "y": 1, "z": 2, "rx": 3, "ry": 4, "rz": 5}
-_DECOUPLED = 1e-9
+_DECOUPLED = 1e-9  # coupling below this fraction of a coordinate's own scale leaves it a plain modal term
 #: a mode an effect creates takes a measured-only mode's frequency and damping within this relative distance
-TEST_ONLY_RTOL = 0.03  # coupling below this fraction of a coordinate's own scale leaves it a plain modal term
+TEST_ONLY_RTOL = 0.03
 
 
 class ModelError(ValueError):
@@ -477,9 +477,10 @@ class ModalModel:
         First the paired modes: each test mode (coordinates with the same test
         frequency and damping form one group — a degenerate cluster, which a
         modification mixes) claims as many poles as it has coordinates, by a
-        one-to-one assignment maximising the group's kinetic-energy share in
-        the poles; a pole with less than a third of its energy in the group is
-        no partner (the effect has turned that mode into another one).  Then
+        one-to-one assignment maximising the group's share of the kinetic
+        energy the FE coordinates hold in the pole, less half the log distance
+        from the test frequency; below a third the pole is no partner (the
+        effect has turned that mode into another one).  Then
         each remaining pole takes the measured mode without FE partner
         (:attr:`test_only`) nearest in frequency, if within
         :data:`TEST_ONLY_RTOL`.
