@@ -12,12 +12,13 @@ Fitting.  The complex misfit of a stiffness is full of narrow valleys (a
 sharp mode sliding past a measured peak), so the parameters are fitted on
 smoothed log spectra: a coordinate search on sixth-octave levels finds the
 basin, a finer search and a bounded least-squares polish on 24th-octave
-levels place the modes.  The fit sees the physics alone (modes the effect
-creates keep their computed frequencies); the scored model then gives them
-the measured frequencies and damping of test-only modes nearby
-(:class:`~receptance.modal_model.ModalModel`, ``test_only``), as the hybrid
-model does for every paired mode.  Uncertainties come from the polish's
-Jacobian.
+levels place the modes.  The fit sees the physics alone — the design model
+(FE frequencies) plus the effect, so that the stiffness is what moves the
+modes from their FE to their measured frequencies; the scored model then
+gives every mode that carries a measured one the test's frequency and
+damping (paired modes and, within 3 %, test-only modes:
+:class:`~receptance.modal_model.ModalModel`), as the hybrid model does.
+Uncertainties come from the polish's Jacobian.
 
 Criterion.  The Bayesian information criterion over the ``N`` cells of
 channel × sixth-octave band (the resolution at which a modal effect shows;
@@ -67,6 +68,8 @@ log = logging.getLogger("receptance")
 BIC_THRESHOLD = 10.0
 MIN_REDUCTION = 0.10
 NOISE_MARGIN = 1.2
+#: a fitted parameter whose halving or doubling moves the summary error by less than this share is undetermined
+UNDETERMINED_DE = 0.01
 OCTAVES = (10.0, 20.0, 40.0, 80.0, 160.0, 320.0, 500.0)
 
 
@@ -259,9 +262,11 @@ def fit_effect(effect: Effect, model: ModalModel, measurements: Sequence[Measure
     hi = np.log10([p.upper for p in params])
     x0 = np.log10([p.initial for p in params])
 
-    # the parameters are fitted on the physics alone: measured-only modes would otherwise capture the poles
-    # the effect creates and flatten the misfit around them (the final model gets them, see ModalModel._pin)
-    physics = replace(model, test_only=())
+    # the parameters are fitted on the physics alone (FE frequencies + effect, nothing pinned): pinned modes
+    # would flatten the misfit around the very frequency shifts that tell the stiffness (the scored model pins)
+    physics = replace(model, test_only=(), freqs_hz=np.where([o == "test" for o in model.origin], model.fe.freqs_hz,
+                                                             model.freqs_hz),
+                      origin=tuple("fe" if o == "test" else o for o in model.origin))
 
     def model_at(x):
         return effect.apply(physics, {p.name: 10 ** v for p, v in zip(params, x)}, tables)
@@ -340,6 +345,14 @@ class _SmoothSpectra:
         return float(np.sum(self.residuals(frfs) ** 2))
 
 
+def _insensitive(effect, values, name, model, measurements, tables, error: float) -> bool:
+    for factor in (0.5, 2.0):
+        moved = effect.apply(model, dict(values, **{name: values[name] * factor}), tables)
+        if abs(misfit(moved, measurements).summary - error) > UNDETERMINED_DE * error:
+            return False
+    return True
+
+
 def _score(effect, values, unc, model, measurements, before, tables, *, params=(), x=None, lo=None, hi=None):
     after_model = effect.apply(model, values, tables) if params else effect.apply(model, {}, tables)
     after = misfit(after_model, measurements)
@@ -349,8 +362,12 @@ def _score(effect, values, unc, model, measurements, before, tables, *, params=(
     if params:
         hit = [p.name for p, v, a, b in zip(params, x, lo, hi) if v - a < 0.02 or b - v < 0.02]
         # a parameter the data cannot determine (e.g. a horizontal rig stiffness whose modes lie far below the
-        # band) drifts, often to a bound, with a huge uncertainty: that is "not determined", not "implausible"
-        undetermined = tuple(p.name for p in params if unc.get(p.name, np.inf) > 1.0)
+        # band) drifts, often to a bound: that is "not determined", not "implausible". Judged by what it does to
+        # the scored error: halving or doubling it moves E by less than UNDETERMINED_DE (or the fit's own
+        # uncertainty exceeds a factor e)
+        undetermined = tuple(p.name for p in params
+                             if unc.get(p.name, np.inf) > 1.0 or _insensitive(effect, values, p.name, model,
+                                                                               measurements, tables, after.summary))
         at_bound = tuple(n for n in hit if n not in undetermined)
     note = ""
     if undetermined:

@@ -227,6 +227,10 @@ def hybrid_model(
     if len(test_only):
         log.info("test modes without FE partner (not in the hybrid model): %s",
                  ", ".join(f"{int(t)} ({f:.1f} Hz)" for t, f in zip(test_only["test_mode"], test_only["f_test_hz"])))
+    if max_hz is not None and f_fe.max() < 2 * max_hz:
+        log.warning("%s: the FE export stops at %.0f Hz, under twice the model's %.0f Hz: structural modifications "
+                    "(bearings, joints) need modes above the band as their basis; export to a few times the band",
+                    fe.source or "FE modes", f_fe.max(), max_hz)
     kept = np.array([j for j in range(n_fe) if origin[j]], int)
     if not np.any([origin[j] == "test" for j in kept]):
         raise ModelError("the pairing pairs no test mode with an FE mode; nothing to build a hybrid model from")

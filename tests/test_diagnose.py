@@ -158,7 +158,7 @@ def test_control_has_no_significant_effect():
 def test_compliant_bearings_are_found_with_their_stiffness():
     """'bearing': axleboxes on bearings (radial 1e9, axial 2.5e8, rocking 5e6, right 15 % stiffer). The fitted
     stiffnesses land within 25 % (the rocking one absorbs the catalogue's default axlebox inertia, 0.9/1.2 vs the
-    lab's 0.85/1.3 kg m²) and the error falls by more than half."""
+    lab's 0.85/1.3 kg m²) and the error falls to the noise floor."""
     model, meas, manifest = _campaign("bearing")
     truth = manifest["scenario"]["effects"]["bearing"]
     result = diagnose(model, meas, max_effects=1)
@@ -168,23 +168,22 @@ def test_compliant_bearings_are_found_with_their_stiffness():
         assert first.params[name] == pytest.approx(truth[name], rel=0.25), name
     assert first.params["right_over_left"] == pytest.approx(truth["right_over_left"], rel=0.25)
     assert result.final.summary < 0.5 * result.initial.summary
+    assert result.final.summary < 1.2 * result.final.noise_floor
 
 
 @pytest.mark.slow
 def test_wheel_seat_compliance_is_found():
     """'joint': press fit with rocking 6e7, radial 2e9, axial 1e9, torsional 2e8. The floating-frame wheel with
     its deformation momentum (lumped from the wheel's rim and web masses) reproduces the lowered bending and
-    umbrella modes; the fit finds the joint first and the error falls to the noise floor. The axial stiffness
-    is only loosely determined (it moves the umbrella mode, whose frequency the model takes from the test), so
-    it is held to a factor of three."""
+    umbrella modes; the fit finds the joint first with all four stiffnesses and the error falls to the noise
+    floor."""
     model, meas, manifest = _campaign("joint")
     truth = manifest["scenario"]["effects"]["joint"]
     result = diagnose(model, meas, max_effects=1)
     first = result.rounds[0][0]
     assert first.name == "wheel_seat_joint" and [f.name for f in result.accepted] == ["wheel_seat_joint"]
-    for name in ("rocking_Nm_per_rad", "radial_N_per_m", "torsional_Nm_per_rad"):
+    for name in ("rocking_Nm_per_rad", "radial_N_per_m", "axial_N_per_m", "torsional_Nm_per_rad"):
         assert first.params[name] == pytest.approx(truth[name], rel=0.25), name
-    assert 1 / 3 < first.params["axial_N_per_m"] / truth["axial_N_per_m"] < 3
     assert result.final.summary < 0.5 * result.initial.summary
     assert result.final.summary < 1.2 * result.final.noise_floor
 

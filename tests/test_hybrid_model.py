@@ -214,3 +214,15 @@ def test_in_service_receptances_converge_to_the_full_fe_solution(fe, points, con
     assert worst(m500, 2, 100) < 0.025
     assert worst(m2k, 2, 100) < 0.6 * worst(m500, 2, 100)
     assert worst(m2k, 300, 400) < 0.6 * worst(m500, 300, 400)
+
+
+def test_a_model_band_near_the_export_top_is_warned(fe, points, caplog):
+    """Local modifications need FE modes above the band: a 500 Hz export for a 500 Hz model is flagged."""
+    table = pd.DataFrame({"test_mode": [1.0], "f_test_hz": [213.0], "fe_modes": ["14"], "zeta": [0.001]})
+    with caplog.at_level("WARNING", logger="receptance"):
+        model = hybrid_model(fe, table, points=points, keep_fe="all", max_hz=500.0)
+    assert "stops at 425 Hz" in caplog.text and model.max_hz == 500.0
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="receptance"):
+        hybrid_model(fe, table, points=points, keep_fe="all", max_hz=200.0)
+    assert "stops at" not in caplog.text
