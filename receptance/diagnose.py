@@ -47,7 +47,7 @@ from __future__ import annotations
 import functools
 import logging
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
 import numpy as np
@@ -264,9 +264,7 @@ def fit_effect(effect: Effect, model: ModalModel, measurements: Sequence[Measure
 
     # the parameters are fitted on the physics alone (FE frequencies + effect, nothing pinned): pinned modes
     # would flatten the misfit around the very frequency shifts that tell the stiffness (the scored model pins)
-    physics = replace(model, test_only=(), freqs_hz=np.where([o == "test" for o in model.origin], model.fe.freqs_hz,
-                                                             model.freqs_hz),
-                      origin=tuple("fe" if o == "test" else o for o in model.origin))
+    physics = model.as_designed()
 
     def model_at(x):
         return effect.apply(physics, {p.name: 10 ** v for p, v in zip(params, x)}, tables)
@@ -281,27 +279,20 @@ def fit_effect(effect: Effect, model: ModalModel, measurements: Sequence[Measure
     # finer pass and a bounded least-squares polish on 24th-octave levels (3 % bands, a few half-power
     # bandwidths of a 0.5 %-damped mode) place the new modes
     coarse, fine = _SmoothSpectra(measurements, stride=4), _SmoothSpectra(measurements, per_octave=24, stride=2)
-    x = x0.copy()
-    best = coarse.cost(frfs(x, 4))
+    def coarse_cost(x):
+        return coarse.cost(frfs(x, 4))
+
+    def fine_cost(x):
+        return fine.cost(frfs(x, 2))
+
+    x, best = x0.copy(), coarse_cost(x0)
     for _ in range(2):
-        for i in range(len(params)):
-            for v in np.linspace(lo[i], hi[i], 17):
-                trial = x.copy()
-                trial[i] = v
-                c = coarse.cost(frfs(trial, 4))
-                if c < best:
-                    best, x = c, trial
-    best = fine.cost(frfs(x, 2))
-    for i in range(len(params)):
-        for v in x[i] + np.linspace(-0.15, 0.15, 11):
-            trial = x.copy()
-            trial[i] = np.clip(v, lo[i], hi[i])
-            c = fine.cost(frfs(trial, 2))
-            if c < best:
-                best, x = c, trial
+        x, best = _coordinate_pass(x, best, coarse_cost, lambda i, x: np.linspace(lo[i], hi[i], 17))
+    x, best = _coordinate_pass(x, fine_cost(x), fine_cost,
+                               lambda i, x: np.clip(x[i] + np.linspace(-0.15, 0.15, 11), lo[i], hi[i]))
     res = scipy.optimize.least_squares(lambda x: fine.residuals(frfs(x, 2)), x, bounds=(lo, hi), diff_step=1e-3,
                                        x_scale=1.0, max_nfev=40)
-    x = res.x if fine.cost(frfs(res.x, 2)) <= best else x
+    x = res.x if fine_cost(res.x) <= best else x
     values = {p.name: float(10 ** v) for p, v in zip(params, x)}
     unc = {}
     try:
@@ -312,6 +303,18 @@ def fit_effect(effect: Effect, model: ModalModel, measurements: Sequence[Measure
     except np.linalg.LinAlgError:
         unc = {p.name: float("inf") for p in params}
     return _score(effect, values, unc, model, measurements, before, tables, params=params, x=x, lo=lo, hi=hi)
+
+
+def _coordinate_pass(x: np.ndarray, best: float, cost: Callable, values: Callable) -> tuple[np.ndarray, float]:
+    """One pass of a coordinate search: each parameter in turn takes the best of ``values(i, x)``, others held."""
+    for i in range(x.size):
+        for v in values(i, x):
+            trial = x.copy()
+            trial[i] = v
+            c = cost(trial)
+            if c < best:
+                best, x = c, trial
+    return x, best
 
 
 class _SmoothSpectra:

@@ -248,6 +248,18 @@ class ModalModel:
             raise ModelError(f"expected a catalogued effect (receptance.effects), got {type(effect).__name__}")
         return effect.apply(self, dict(values or {}), setups)
 
+    def as_designed(self) -> "ModalModel":
+        """The physics alone: test-paired modes back at their FE frequencies, no measured-only modes.
+
+        Nothing is pinned to the test any more (the origins say ``"fe"``), so a
+        modification moves every mode as the design model plus the effect
+        would; damping ratios stay those of the test.
+        """
+        test = np.array([o == "test" for o in self.origin])
+        return replace(self, freqs_hz=np.where(test, self.fe.freqs_hz, self.freqs_hz), test_only=(),
+                       origin=tuple("fe" if t else o for o, t in zip(self.origin, test)),
+                       history=self.history + ("test frequencies replaced by the FE's (physics alone)",))
+
     def without_modifications(self) -> "ModalModel":
         """The bare modal model (free-free hybrid model): no modifications, no channel terms."""
         return replace(self, modifications=(), channel_terms=(), history=self.history + ("modifications removed",))
