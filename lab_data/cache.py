@@ -44,7 +44,9 @@ def campaign_dir(scenario: str = "control", **config) -> Path:
     ----------
     scenario : str
     **config
-        Further :class:`~lab_data.campaign.CampaignConfig` fields.
+        Further :class:`~lab_data.campaign.CampaignConfig` fields, e.g.
+        ``fe_export_hz=2000.0, fe_style="beam"``; every field, the export
+        style included, is part of the cache key.
 
     Returns
     -------

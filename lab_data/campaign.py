@@ -6,11 +6,13 @@ channel ranges; :func:`write_campaign` synthesises every hit and writes
 
 * ``fe_design.uff`` — design FE export: UFF 164 + 2411 + 2412 + 55 (6 DOF per
   node, mass-normalised, rigid-body modes included, degenerate pairs in the
-  arbitrary basis an FE solver returns);
+  arbitrary basis an FE solver returns), in the style ``fe_style`` asks for
+  (:mod:`lab_data.fe_styles`: the lab's 3D ``mesh`` or a design office's
+  ``beam``-and-lumped-mass model); the hammer data are the same in both;
 * ``fe_design.pch`` — the same modes as a Nastran punch file;
 * ``<setup>.uff`` — binary UFF58 time histories (function type 1), one dataset
   per channel per hit, hit number in the sequence-number field;
-* ``<setup>_channels.csv`` — the channel table;
+* ``<setup>_channels.csv`` — the channel table (``fe_node`` on the exported model);
 * ``points.csv`` — contact points and axlebox centres with their FE nodes;
 * ``truth.json`` — the truth manifest (only tests read it).
 
@@ -35,17 +37,16 @@ from typing import Callable
 
 import numpy as np
 
-from .fe_model import Beam, Modes, PointMass, Shell
+from .fe_styles import FE_STYLES, DesignExport, beam_export, mesh_export, sensor_mac
 from .hammer import ModalTruth, Pulse, add_noise, quantise, synthesize_hit
-from .mode_labels import mix_clusters
 from .nastran_punch import write_punch_eigenvectors
 from .scenarios import Scenario, get_scenario
-from .sensors import SETUP_NAMES, Setup, channel_table, make_setup, point_rows, points_table
-from .truth import BAND_HZ, SetupView, SolvedModel, check_spectral_gap, design_modes, pair_with_design, setup_view, truth_modes
-from .uff_export import ElementRecord, TimeHistory, write_fe_uff, write_time_histories
+from .sensors import SETUP_NAMES, Setup, channel_table, make_setup, point_rows, points_frame
+from .truth import BAND_HZ, SetupView, SolvedModel, check_spectral_gap, design_modes, setup_view, truncated, truth_modes
+from .uff_export import TimeHistory, write_fe_uff, write_time_histories
 from .wheelset import WheelsetParameters
 
-__all__ = ["CampaignConfig", "HitPlan", "CampaignPlan", "plan_campaign", "write_campaign", "simulate", "export_elements"]
+__all__ = ["CampaignConfig", "HitPlan", "CampaignPlan", "plan_campaign", "write_campaign", "simulate"]
 
 log = logging.getLogger(__name__)
 
@@ -75,9 +76,14 @@ class CampaignConfig:
     overload_hit: int = 5
     seed: int = 1863
     oversample: int = 4
+    #: Style of the design FE export (:data:`lab_data.fe_styles.FE_STYLES`): ``mesh`` (the lab's 3D model) or
+    #: ``beam`` (a design office's rotor-dynamics model: beam axle, lumped masses, rims on web springs).
+    fe_style: str = "mesh"
 
     def __post_init__(self) -> None:
         get_scenario(self.scenario)
+        if self.fe_style not in FE_STYLES:
+            raise ValueError(f"fe_style must be one of {list(FE_STYLES)}, got {self.fe_style!r}")
         if self.n_hits < 5:
             raise ValueError(f"n_hits must be >= 5, got {self.n_hits}")
         for name in ("double_hit", "overload_hit"):
@@ -109,7 +115,14 @@ class HitPlan:
 
 @dataclass(frozen=True)
 class CampaignPlan:
-    """The truth and the test plan of a campaign, before any signal is synthesised."""
+    """The truth and the test plan of a campaign, before any signal is synthesised.
+
+    ``design`` is the lab's 3D design model (it names the truth's modes and
+    carries the transducers the hits are synthesised at); ``export`` is the
+    design FE as written in the campaign's ``fe_style``, whose modes are
+    ``export_freqs_hz``/``export_shapes`` and which ``pairs`` (truth mode ->
+    exported partner modes, MAC) refer to.
+    """
 
     config: CampaignConfig
     scenario: Scenario
@@ -124,6 +137,7 @@ class CampaignPlan:
     hits: dict[str, tuple[HitPlan, ...]]
     pairs: list
     points: list = field(default_factory=list)
+    export: DesignExport | None = None
 
 
 def _draw_hits(config: CampaignConfig, rng: np.random.Generator) -> tuple[HitPlan, ...]:
@@ -153,37 +167,33 @@ def plan_campaign(config: CampaignConfig = CampaignConfig(), params: WheelsetPar
     design_all = design_modes(params, config.export_hz * 1.1)
     check_spectral_gap(design_all.modes.freqs_hz, config.export_hz, "design FE export")
     keep = design_all.modes.freqs_hz <= config.export_hz
-    design = _truncate(design_all, keep)
+    design = truncated(design_all, keep)
 
     f_truth = scenario.truth_max_hz or config.fe_max_hz
     log.info("solving the as-built truth (%s) up to %.0f Hz", scenario.name, f_truth)
     truth_all = truth_modes(scenario, params, f_truth * 1.1, design)
     if scenario.truth_max_hz is None:
         check_spectral_gap(truth_all.modes.freqs_hz, f_truth, f"truth of scenario {scenario.name!r}")
-    truth = _truncate(truth_all, truth_all.modes.freqs_hz <= f_truth)
-    pairs = pair_with_design(truth, design)
+    truth = truncated(truth_all, truth_all.modes.freqs_hz <= f_truth)
 
-    rng = np.random.default_rng(config.seed)
-    exported = mix_clusters(design.model, design.system, design.modes, rng)
     points = point_rows(design.model, params)
-    setups, views, modal, hits = {}, {}, {}, {}
+    setups = {name: make_setup(name, design.model, params) for name in SETUP_NAMES}
+    if config.fe_style == "mesh":
+        export = mesh_export(design, truth, setups, points, np.random.default_rng(config.seed))
+    else:
+        log.info("solving the beam design FE model up to %.0f Hz", config.export_hz)
+        export = beam_export(params, config.export_hz, design, truth, setups, points,
+                             np.random.default_rng([config.seed, 2]))
+    views, modal, hits = {}, {}, {}
     for name in SETUP_NAMES:
-        setup = make_setup(name, design.model, params)
-        view = setup_view(truth, setup, points)
-        setups[name] = setup
+        view = setup_view(truth, setups[name], points)
         views[name] = view
         modal[name] = ModalTruth(view.freqs_hz, view.zeta, view.input_shape, view.output_shapes)
         hits[name] = _draw_hits(config, np.random.default_rng([config.seed, SETUP_NAMES.index(name)]))
     return CampaignPlan(
-        config, scenario, params, design, exported.freqs_hz, exported.shapes, truth, setups, views, modal, hits,
-        pairs, points,
+        config, scenario, params, design, export.freqs_hz, export.shapes, truth, setups, views, modal, hits,
+        export.pairs, points, export,
     )
-
-
-def _truncate(s: SolvedModel, keep: np.ndarray) -> SolvedModel:
-    m = s.modes
-    modes = Modes(m.freqs_hz[keep], m.shapes[keep], m.reduced[:, keep])
-    return SolvedModel(s.model, s.system, modes, tuple(l for l, k in zip(s.labels, keep) if k), s.zeta[keep])
 
 
 def _nice_ceil(x: np.ndarray) -> np.ndarray:
@@ -203,34 +213,6 @@ def _direction_code(d: tuple[float, float, float]) -> int:
     if abs(abs(d[k]) - 1.0) < 1e-9:
         return int(np.sign(d[k])) * (k + 1)
     return 0
-
-
-def export_elements(plan_or_model) -> list[ElementRecord]:
-    """UFF 2412 records of the design model: beams (21), shells (94), lumped masses (161), display skins (94).
-
-    Physical property numbers: 1 axle beams, 2 wheel-rim beams, 3 wheel webs,
-    4 brake discs, 5 lumped masses, 99 display skins (no stiffness, no mass:
-    they only give the mesh its wheelset look).
-    """
-    model = plan_or_model.design.model if hasattr(plan_or_model, "design") else plan_or_model
-    records = []
-    eid = 1
-    for e in model.elements:
-        if isinstance(e, Beam):
-            prop = 2 if "rim" in e.group else 1
-            records.append(ElementRecord(eid, 21, prop, 1, 7, tuple(int(n) for n in e.nodes)))
-        elif isinstance(e, Shell):
-            prop = 4 if e.group.startswith("disc") else 3
-            records.append(ElementRecord(eid, 94, prop, 1, 8, tuple(int(n) for n in e.nodes)))
-        elif isinstance(e, PointMass):
-            records.append(ElementRecord(eid, 161, 5, 1, 2, (int(e.node),)))
-        else:
-            continue
-        eid += 1
-    for s in model.skins:
-        records.append(ElementRecord(eid, 94, 99, 1, 11, tuple(int(n) for n in s.nodes)))
-        eid += 1
-    return records
 
 
 def _synthesise(plan: CampaignPlan, setup_name: str, hit: HitPlan) -> tuple[np.ndarray, np.ndarray]:
@@ -277,24 +259,25 @@ def write_campaign(
     out.mkdir(parents=True, exist_ok=True)
     c = plan.config
     files: dict[str, Path] = {}
-    design = plan.design
+    export = plan.export
+    model = export.solved.model
 
-    say(f"writing the design FE export ({len(plan.export_freqs_hz)} modes up to {c.export_hz:g} Hz)")
+    say(f"writing the design FE export ({export.style} style, {len(plan.export_freqs_hz)} modes up to "
+        f"{c.export_hz:g} Hz)")
     files["fe_uff"] = write_fe_uff(
         out / "fe_design.uff",
-        design.model.node_ids,
-        design.model.xyz,
-        export_elements(design.model),
+        model.node_ids,
+        model.xyz,
+        list(export.elements),
         plan.export_freqs_hz,
         plan.export_shapes,
-        model_name="railmodal design wheelset",
-        description="Meneghino trailer wheelset, design FE, free-free, SI units (m, kg, s)",
+        model_name=export.model_name,
+        description=export.description,
     )
     files["fe_punch"] = write_punch_eigenvectors(
-        out / "fe_design.pch", design.model.node_ids, plan.export_freqs_hz, plan.export_shapes,
-        title="RAILMODAL DESIGN WHEELSET FREE-FREE",
+        out / "fe_design.pch", model.node_ids, plan.export_freqs_hz, plan.export_shapes, title=export.punch_title,
     )
-    points_table(design.model, plan.params).to_csv(out / "points.csv", index=False)
+    points_frame(export.points).to_csv(out / "points.csv", index=False)
     files["points"] = out / "points.csv"
 
     manifest_setups = {}
@@ -341,7 +324,7 @@ def write_campaign(
             )
         say(f"setup {name}: writing {len(histories)} UFF58 datasets")
         files[f"{name}_uff"] = write_time_histories(out / f"{name}.uff", histories, binary=True)
-        table = channel_table(setup)
+        table = channel_table(export.setups[name])
         table.to_csv(out / f"{name}_channels.csv", index=False)
         files[f"{name}_channels"] = out / f"{name}_channels.csv"
         manifest_setups[name] = _setup_manifest(plan, name, ranges, hit_records)
@@ -356,21 +339,43 @@ def write_campaign(
         "noise_rms": {"acceleration_m_per_s2": ACC_NOISE_RMS, "force_N": FORCE_NOISE_RMS},
         "adc_bits": 24,
         "force_range_N": FORCE_RANGE,
+        "fe_style": export.style,
         "design_modes": [
             {"mode": i + 1, "f_hz": float(f), "description": lab.description, "family": lab.family}
-            for i, (f, lab) in enumerate(zip(plan.export_freqs_hz, plan.design.labels))
+            for i, (f, lab) in enumerate(zip(plan.export_freqs_hz, export.solved.labels))
         ],
         "files": {k: v.name for k, v in files.items()},
         "setups": manifest_setups,
     }
+    if export.beam is not None:
+        manifest["beam_model"] = _beam_manifest(export)
     (out / "truth.json").write_text(json.dumps(manifest, indent=1))
     files["truth"] = out / "truth.json"
     say(f"campaign {plan.scenario.name!r} written to {out}")
     return files
 
 
+def _beam_manifest(export: DesignExport) -> dict:
+    """What the beam design assumed (for tests and the closing note; a real export would not say it)."""
+    b = export.beam
+    return {
+        "axle_nodes": b.axle_nodes.tolist(),
+        "axle_y_m": b.axle_y.tolist(),
+        "seat_node": b.seat_node,
+        "disc_node": b.disc_node,
+        "journal_node": b.journal_node,
+        "rim_node": b.rim_node,
+        "web_springs": {"axial_N_per_m": b.web.axial, "radial_N_per_m": b.web.radial,
+                        "rocking_Nm_per_rad": b.web.rocking, "torsional_Nm_per_rad": b.web.torsional},
+        "rim_body": {"mass_kg": b.rim.mass, "diametral_kg_m2": b.rim.diametral, "polar_kg_m2": b.rim.polar},
+        "hub": {"mass_kg": b.hub[0], "diametral_kg_m2": b.hub[1], "polar_kg_m2": b.hub[2]},
+        "disc": {"mass_kg": b.disc[0], "diametral_kg_m2": b.disc[1], "polar_kg_m2": b.disc[2]},
+        "axlebox": "lumped on the journal node",
+    }
+
+
 def _setup_manifest(plan: CampaignPlan, name: str, ranges: np.ndarray, hit_records: list) -> dict:
-    setup = plan.setups[name]
+    setup = plan.export.setups[name]
     view = plan.views[name]
     modes = []
     for i, f in enumerate(view.freqs_hz):
@@ -389,6 +394,7 @@ def _setup_manifest(plan: CampaignPlan, name: str, ranges: np.ndarray, hit_recor
                 "nodal_diameters": lab.nodal_diameters,
                 "fe_partner": [k + 1 for k in partner],
                 "fe_mac": mac,
+                "fe_mac_sensors": sensor_mac(plan.export, name, view.output_shapes[:, i], partner),
                 "peak_ratio": float(view.peak_ratio[i]),
                 "observable": bool(in_band and view.peak_ratio[i] >= OBSERVABLE_PEAK_RATIO),
                 "input_shape": float(view.input_shape[i]),

@@ -19,6 +19,7 @@ damping).
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import Callable
 
 import numpy as np
 
@@ -215,7 +216,10 @@ def renumber(label: ModeLabel, order: int) -> ModeLabel:
     return replace(label, order=order, description=f"{_ordinal(order)} {rest}")
 
 
-def label_modes(model: FEModel, system: SystemMatrices, modes: Modes) -> list[ModeLabel]:
+def label_modes(
+    model: FEModel, system: SystemMatrices, modes: Modes,
+    plate_pattern: Callable[[str, int], tuple[int, str]] | None = None,
+) -> list[ModeLabel]:
     """Classify every mode (family, order, plane, nodal diameters) from its strain energy.
 
     Rules: torsion if axle torsion holds > 50 % of the strain energy; rig,
@@ -223,6 +227,10 @@ def label_modes(model: FEModel, system: SystemMatrices, modes: Modes) -> list[Mo
     flexural if axle bending holds >= 20 % (wheel-rocking modes that bend
     the axle are flexural, as in thesis Table 3.1); otherwise the family
     holding most energy (wheel, disc, axial).
+
+    ``plate_pattern(family, mode_index) -> (nodal_diameters, text)`` names a
+    wheel or disc mode; by default the dominant harmonic of the outer ring's
+    axial motion (``"2 nodal diameters"``), which needs meshed rings.
     """
     full = modes.full
     fracs = energy_fractions(system, full)
@@ -264,6 +272,9 @@ def label_modes(model: FEModel, system: SystemMatrices, modes: Modes) -> list[Mo
         if fam == "flexural":
             plane = bending_plane(model, modes.shapes[i])
             desc += f" ({plane})"
+        elif fam in ("wheel", "disc") and plate_pattern is not None:
+            nd, text = plate_pattern(fam, i)
+            desc += f" ({text})"
         elif fam in ("wheel", "disc"):
             groups = [g for g in (f"{fam}_L", f"{fam}_R")]
             amp = [np.sum(modes.shapes[i][[model.index(n) for n in model.nodes_of(g)]] ** 2) for g in groups]

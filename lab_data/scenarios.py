@@ -29,6 +29,14 @@ or more hidden physical effects that the design model lacks:
     while the truth keeps all its modes up to 5 kHz.
 ``bearing_rig``
     Two hidden effects at once: ``bearing`` and ``rig``.
+``rig_sling``
+    The wheelset hangs from the crane on two slings wrapped around the axle
+    body between each wheel and its brake disc, at y = ±0.52 m (inboard of
+    the wheel hub, clear of the disc seat's shoulder and 4 cm from the axle
+    accelerometers at ±0.56 m), not at the axleboxes: the same spring values
+    as ``rig`` (3.5e5 N/m vertical, 4e3 N/m horizontal per sling).
+``bearing_sling_rig``
+    Two hidden effects at once: ``bearing`` and ``rig_sling``.
 ``absorber``
     An effect outside any catalogue: a tuned vibration absorber bolted to the
     left brake disc rim (6 kg on a 9.0e6 N/m spring acting vertically,
@@ -54,6 +62,7 @@ __all__ = [
     "HiddenEffect",
     "CompliantBearings",
     "RigSuspension",
+    "SlingRig",
     "WheelSeatJoint",
     "TunedAbsorber",
     "Scenario",
@@ -142,6 +151,52 @@ class RigSuspension:
 
     def parameters(self) -> dict:
         return {"vertical_N_per_m": self.vertical, "horizontal_N_per_m": self.horizontal, "attachment": "axleboxes"}
+
+
+@dataclass(frozen=True)
+class SlingRig:
+    """Crane slings around the axle body at y = ±``y``: springs from the axle to the (fixed) crane.
+
+    The sling acts on the axle's centreline at ``y``; when no axle station lies
+    there, each spring is shared between the two neighbouring stations by the
+    lever rule (force and moment about the sling preserved). The difference
+    from an exact point attachment is a spring ``k xi (1 - xi)`` on the
+    relative motion of two stations 3.5 cm apart, negligible against the
+    axle's bending stiffness.
+    """
+
+    vertical: float = 3.5e5
+    horizontal: float = 4.0e3
+    y: float = 0.52
+    name: str = "rig"
+
+    def apply(self, model: FEModel) -> FEModel:
+        axle = model.nodes_of("axle")
+        ys = np.array([model.coords(n)[1] for n in axle])
+        order = np.argsort(ys)
+        axle, ys = axle[order], ys[order]
+        springs = []
+        for side, sgn in (("L", -1.0), ("R", 1.0)):
+            target = sgn * self.y
+            if not ys[0] < target < ys[-1]:
+                raise ValueError(f"sling at y = {target} m lies outside the axle ({ys[0]:.3f} .. {ys[-1]:.3f} m)")
+            j = int(np.clip(np.searchsorted(ys, target), 1, len(ys) - 1))
+            xi = (target - ys[j - 1]) / (ys[j] - ys[j - 1])
+            for node, w in ((axle[j - 1], 1.0 - xi), (axle[j], xi)):
+                if w <= 1e-12:
+                    continue
+                k = (w * self.horizontal, w * self.horizontal, w * self.vertical, 0.0, 0.0, 0.0)
+                springs.append(Spring(int(node), None, k, (0.0,) * 6, f"rig_{side}"))
+        return model.with_changes(add_elements=springs, name=f"{model.name}+sling")
+
+    def parameters(self) -> dict:
+        return {
+            "vertical_N_per_m": self.vertical,
+            "horizontal_N_per_m": self.horizontal,
+            "attachment": "slings on the axle body",
+            "y_m": [-self.y, self.y],
+            "hanging_points_m": [[0.0, -self.y, 0.0], [0.0, self.y, 0.0]],
+        }
 
 
 @dataclass(frozen=True)
@@ -250,6 +305,16 @@ SCENARIOS: dict[str, Scenario] = {
             "bearing_rig",
             "two hidden effects: compliant bearings and crane springs",
             effects=(CompliantBearings(), RigSuspension()),
+        ),
+        Scenario(
+            "rig_sling",
+            "wheelset hangs from two crane slings around the axle body, not at the axleboxes; the FE is free-free",
+            effects=(SlingRig(),),
+        ),
+        Scenario(
+            "bearing_sling_rig",
+            "two hidden effects: compliant bearings and crane slings around the axle body",
+            effects=(CompliantBearings(), SlingRig()),
         ),
         Scenario(
             "absorber",

@@ -26,7 +26,8 @@ import pandas as pd
 from .fe_model import FEModel
 from .wheelset import NODE, WheelsetParameters
 
-__all__ = ["Sensor", "Setup", "SETUP_NAMES", "make_setup", "channel_table", "points_table", "point_rows", "shape_matrix"]
+__all__ = ["Sensor", "Setup", "SETUP_NAMES", "make_setup", "channel_table", "points_table", "points_frame",
+           "point_rows", "shape_matrix"]
 
 SETUP_NAMES = ("flexural", "torsional")
 
@@ -174,9 +175,12 @@ def point_rows(model: FEModel, p: WheelsetParameters = WheelsetParameters()) -> 
 
 def points_table(model: FEModel, p: WheelsetParameters = WheelsetParameters()) -> pd.DataFrame:
     """Points CSV content: ``name, fe_node, x, y, z``."""
-    return pd.DataFrame(
-        [{"name": n, "fe_node": fe, "x": x[0], "y": x[1], "z": x[2]} for n, fe, x in point_rows(model, p)]
-    )
+    return points_frame(point_rows(model, p))
+
+
+def points_frame(rows: list[tuple[str, int, tuple]]) -> pd.DataFrame:
+    """Points CSV content ``name, fe_node, x, y, z`` of ``(name, fe_node, xyz)`` rows (see :func:`point_rows`)."""
+    return pd.DataFrame([{"name": n, "fe_node": fe, "x": x[0], "y": x[1], "z": x[2]} for n, fe, x in rows])
 
 
 def shape_matrix(

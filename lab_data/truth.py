@@ -31,7 +31,8 @@ from .scenarios import Scenario, as_built_parameters
 from .sensors import Setup, shape_matrix
 from .wheelset import WheelsetParameters, build_wheelset
 
-__all__ = ["SolvedModel", "design_modes", "truth_modes", "SetupView", "setup_view", "check_spectral_gap", "pair_with_design"]
+__all__ = ["SolvedModel", "design_modes", "truth_modes", "SetupView", "setup_view", "check_spectral_gap",
+           "pair_with_design", "greedy_pairs", "truncated"]
 
 log = logging.getLogger(__name__)
 
@@ -47,6 +48,13 @@ class SolvedModel:
     modes: Modes
     labels: tuple[ModeLabel, ...]
     zeta: np.ndarray
+
+
+def truncated(s: SolvedModel, keep: np.ndarray) -> SolvedModel:
+    """The same solved model with only the modes selected by the boolean mask ``keep``."""
+    m = s.modes
+    modes = Modes(m.freqs_hz[keep], m.shapes[keep], m.reduced[:, keep])
+    return SolvedModel(s.model, s.system, modes, tuple(l for l, k in zip(s.labels, keep) if k), s.zeta[keep])
 
 
 def _solve(model: FEModel, f_max_hz: float) -> SolvedModel:
@@ -136,7 +144,16 @@ def pair_with_design(truth: SolvedModel, design: SolvedModel, threshold: float =
     clusters = degenerate_clusters(design.modes.freqs_hz)
     with np.errstate(divide="ignore", invalid="ignore"):
         mac = np.stack([np.sum(cross[:, c] ** 2, axis=1) for c in clusters], axis=1) / norm_t[:, None]
-    mac = np.nan_to_num(mac)
+    return greedy_pairs(np.nan_to_num(mac), clusters, threshold)
+
+
+def greedy_pairs(mac: np.ndarray, clusters: list[list[int]], threshold: float) -> list[tuple[list[int], float]]:
+    """Assign truth modes (rows of ``mac``) to design clusters (columns) by decreasing MAC.
+
+    Each cluster takes at most as many truth modes as it has members, and
+    only pairs with MAC >= ``threshold`` are made; an unpaired truth mode
+    gets an empty list and its best MAC.
+    """
     capacity = [len(c) for c in clusters]
     result: list[tuple[list[int], float]] = [([], float(mac[i].max())) for i in range(mac.shape[0])]
     for flat in np.argsort(-mac, axis=None):

@@ -129,6 +129,7 @@ FE_DESCRIPTORS: dict[int, tuple[str, int, int | None]] = {
     94: ("thin shell linear quadrilateral", 4, 4),
     161: ("lumped mass", 1, 1),
     136: ("node-to-node translational spring", 2, 2),
+    137: ("node-to-node rotational spring", 2, 2),
     122: ("rigid element", 2, None),
 }
 
@@ -165,7 +166,8 @@ class ElementRecord:
     fe_descriptor : int
         UFF 2412 FE descriptor id: 21 linear beam, 94 thin-shell linear
         quadrilateral, 161 lumped mass, 136 node-to-node translational
-        spring, 122 rigid element (see :data:`FE_DESCRIPTORS`).
+        spring, 137 node-to-node rotational spring, 122 rigid element (see
+        :data:`FE_DESCRIPTORS`).
     physical_property : int
         Physical property table number (>= 0).  For beams it is also written
         as the fore-end and aft-end cross-section number.
