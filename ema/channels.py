@@ -38,6 +38,8 @@ __all__ = [
     "CHANNEL_QUANTITIES",
     "validate_channels",
     "read_channels",
+    "read_table_csv",
+    "MAX_NODE",
 ]
 
 log = logging.getLogger("ema")
@@ -51,6 +53,8 @@ CHANNEL_QUANTITIES: dict[str, tuple[str, ...]] = {
     "force": ("N",),
     "acceleration": ("m/s^2", "m/s2", "m/s**2", "m/s\u00b2"),
 }
+#: Largest node number: UFF node fields are I10 (and FE codes use 32-bit labels).
+MAX_NODE = 2**31 - 1
 #: A direction vector whose norm differs from 1 by more than this is rejected
 #: (it is a typo, not a rounding error); within it, it is normalised.
 DIRECTION_NORM_TOL = 1e-3
@@ -69,8 +73,8 @@ def _row_label(df: pd.DataFrame, i: int) -> str:
     node = df["node"].iloc[i] if "node" in df.columns else None
     try:
         n = int(node)
-        return f"row {i + 1} (node {n})"
-    except (TypeError, ValueError):
+        return f"row {i + 1} (node {n})" if 0 < n <= MAX_NODE else f"row {i + 1}"
+    except (TypeError, ValueError, OverflowError):
         return f"row {i + 1}"
 
 
@@ -126,13 +130,14 @@ def validate_channels(df: pd.DataFrame, *, source: str = "") -> pd.DataFrame:
             ok = False
             try:
                 fv = float(v)
-                ok = np.isfinite(fv) and fv == int(fv) and fv > 0
-            except (TypeError, ValueError):
+                ok = bool(np.isfinite(fv) and fv == int(fv) and 0 < fv <= MAX_NODE)
+            except (TypeError, ValueError, OverflowError):
                 ok = False
             if not ok:
                 raise ChannelTableError(
                     f"{where}: {_row_label(out, i) if col != 'node' else f'row {i + 1}'}, column {col!r}: "
-                    f"expected a positive integer node number, got {v!r}"
+                    f"expected a positive integer node number up to {MAX_NODE} (the I10 field of a universal "
+                    f"file), got {v!r}"
                     + (". Leave fe_node out of the table if the FE node is unknown." if col == "fe_node" else "")
                 )
             vals.append(int(fv))
@@ -231,17 +236,96 @@ def read_channels(csv_path: str | os.PathLike) -> pd.DataFrame:
     FileNotFoundError
         The file does not exist.
     ChannelTableError
-        The file cannot be parsed as CSV or the table is invalid; the message
-        names the file.
+        The file is a folder, cannot be parsed as CSV, or the table is
+        invalid; the message names the file (and row and column).
+
+    Notes
+    -----
+    The separator (``,``, ``;``, tab or ``|``) and a decimal comma are
+    detected (:func:`read_table_csv`); a UTF-8 byte-order mark is accepted.
     """
     path = Path(os.fspath(csv_path))
-    if not path.is_file():
-        raise FileNotFoundError(f"channel table {str(path)!r} does not exist")
-    try:
-        df = pd.read_csv(path, skipinitialspace=True)
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
-        raise ChannelTableError(f"channel table {str(path)!r}: cannot be parsed as CSV ({exc})") from exc
-    df.columns = [str(c).strip() for c in df.columns]
+    df = read_table_csv(path, role="channel table", required=REQUIRED_COLUMNS, error=ChannelTableError)
     table = validate_channels(df, source=str(path))
     log.debug("read channel table %s: %d channels", path, len(table))
     return table
+
+
+_SEPARATORS = (",", ";", "\t", "|")
+_NAMES = {",": "comma", ";": "semicolon", "\t": "tab", "|": "vertical bar"}
+
+
+def read_table_csv(path: str | os.PathLike, *, role: str, required, error=ValueError, dtype=None) -> pd.DataFrame:
+    """Read a CSV table whatever its separator, naming the file in every error.
+
+    The separator is the one of ``,`` ``;`` tab ``|`` that splits the header
+    into the most ``required`` columns; with a separator other than the comma,
+    numbers written with a decimal comma (``0,56``) are read as such. A UTF-8
+    byte-order mark is dropped. Column names are stripped of blanks.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+    role : str
+        What the table is ("channel table", "points table"), for messages.
+    required : sequence of str
+        Columns the table must have (used to recognise the separator; a
+        missing one is reported by the caller's validation).
+    error : type
+        Exception class raised for a table that cannot be parsed.
+    dtype : dict, optional
+        Passed to :func:`pandas.read_csv`.
+
+    Raises
+    ------
+    FileNotFoundError
+        No such file.
+    error
+        A folder instead of a file, not text, or rows that do not match the
+        header (e.g. decimal commas in a comma-separated file).
+    """
+    import io
+    import re
+
+    path = Path(os.fspath(path))
+    if path.is_dir():
+        raise error(f"{role} {str(path)!r} is a folder, not a file; give the CSV file")
+    if not path.is_file():
+        raise FileNotFoundError(f"{role} {str(path)!r} does not exist")
+    raw = path.read_bytes()
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise error(f"{role} {str(path)!r}: not UTF-8 text (byte {exc.start}: {raw[exc.start:exc.start + 1]!r}); "
+                    f"save the table as UTF-8 CSV") from None
+    lines = [ln for ln in text.splitlines() if ln.strip()]
+    if not lines:
+        raise error(f"{role} {str(path)!r} is empty; it needs a header line with columns {list(required)}")
+    header = lines[0]
+    want = set(required)
+    scores = {sep: len(want & {c.strip() for c in header.split(sep)}) for sep in _SEPARATORS}
+    sep = max(_SEPARATORS, key=lambda s: (scores[s], s == ","))
+    body = "\n".join(lines[1:])
+    decimal = "."
+    if sep != "," and re.search(r"(^|[^\d.])[-+]?\d+,\d+([eE][-+]?\d+)?($|[^\d])", body, re.M):
+        decimal = ","
+    if sep != "," or decimal != ".":
+        log.info("%s %s: read with %s separators%s", role, path, _NAMES[sep],
+                 " and decimal commas" if decimal == "," else "")
+    try:
+        df = pd.read_csv(io.StringIO(text), sep=sep, decimal=decimal, skipinitialspace=True, dtype=dtype)
+    except pd.errors.ParserError as exc:
+        hint = ""
+        if sep == "," and re.search(r"\d,\d", body):
+            hint = "; it looks like decimal commas in a comma-separated file: use '.' for decimals or ';' to separate"
+        raise error(f"{role} {str(path)!r}: rows do not match the header ({exc}){hint}") from None
+    except pd.errors.EmptyDataError as exc:
+        raise error(f"{role} {str(path)!r}: cannot be parsed as CSV ({exc})") from None
+    df.columns = [str(c).strip() for c in df.columns]
+    if len(df.columns) == 1 and len(want) > 1:
+        only = str(df.columns[0])
+        guess = next((_NAMES[s] for s in _SEPARATORS if s in only), None)
+        if guess:
+            raise error(f"{role} {str(path)!r}: the header {only!r} is one column; it looks {guess}-separated but "
+                        f"does not name the columns {list(required)}")
+    return df

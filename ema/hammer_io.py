@@ -31,6 +31,8 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
+from fem_import.uff_text import DatasetSpan, fortran_field_problem, prepare_for_pyuff, unreadable_field
+
 from .channels import read_channels, validate_channels
 
 __all__ = [
@@ -312,17 +314,18 @@ def _line_end(raw: bytes, pos: int) -> int:
     return len(raw) if e < 0 else e + 1
 
 
-def _scan_uff(raw: bytes, path: str) -> list[tuple[int, bool]]:
+def _scan_uff(raw: bytes, path: str) -> list[tuple[int, bool, int, int]]:
     """Walk the dataset framing of a universal file.
 
-    Returns ``[(dataset type, binary), ...]`` in file order. Raises
+    Returns ``[(dataset type, binary, start, end), ...]`` in file order
+    (``start``: offset of the dataset-number line, ``end``: of the end tag). Raises
     :class:`UFFReadError` for a missing start or end tag, a header that is
     not a dataset number, or a binary block shorter than its header says
     (truncation).
     """
     n = len(raw)
     pos = 0
-    sets: list[tuple[int, bool]] = []
+    sets: list[tuple[int, bool, int, int]] = []
     while True:
         # skip blank lines between datasets
         while pos < n:
@@ -344,6 +347,7 @@ def _scan_uff(raw: bytes, path: str) -> list[tuple[int, bool]]:
             raise UFFReadError(f"{path}: the file ends after the start tag of dataset {k} (truncated)")
         e = _line_end(raw, pos)
         head = raw[pos:e]
+        head_start = pos
         try:
             set_type = int(head[:6])
         except ValueError:
@@ -385,14 +389,16 @@ def _scan_uff(raw: bytes, path: str) -> list[tuple[int, bool]]:
                     f"{path}: dataset {k} (type {set_type}b): expected the end tag '    -1' right after the "
                     f"{n_bytes} data bytes (byte {pos}), got {raw[pos:min(e, pos + 40)]!r}; the file is corrupt"
                 )
+            end_tag = pos
             pos = e
         else:
             m = _TAG.search(raw, pos)
             if m is None:
                 raise UFFReadError(f"{path}: dataset {k} (type {set_type}) has no end tag '    -1' (truncated file)")
+            end_tag = m.start()
             pos = m.end()
             pos = _line_end(raw, pos) if pos < n and raw[pos:pos + 1] in (b"\r", b"\n") else pos
-        sets.append((set_type, binary))
+        sets.append((set_type, binary, head_start, end_tag))
 
 
 # --------------------------------------------------------------------------
@@ -402,9 +408,10 @@ def _read_uff_sets(path: Path, wanted_type: int = 58) -> list[dict]:
     """Framing check, then every dataset of ``wanted_type`` read by pyuff (as dicts, file order).
 
     Each dict gets an extra key ``'_index'``: its 1-based dataset number in the file.
+    Fortran ``D`` exponents in ASCII datasets are read; an overflow field
+    (``*****``) raises :class:`UFFReadError` naming the dataset, record and line
+    (:mod:`fem_import.uff_text`).
     """
-    import pyuff  # third-party reader, imported where needed
-
     p = str(path)
     try:
         raw = path.read_bytes()
@@ -413,12 +420,23 @@ def _read_uff_sets(path: Path, wanted_type: int = 58) -> list[dict]:
     if not raw.strip():
         raise UFFReadError(f"{p}: the file is empty")
     framing = _scan_uff(raw, p)
+    spans = [DatasetSpan(k, t, b, s, e) for k, (t, b, s, e) in enumerate(framing, 1)]
+    problem, _ = fortran_field_problem(raw, spans)
+    if problem is not None:
+        raise UFFReadError(f"{p}: {problem}")
+    with prepare_for_pyuff(p, raw, spans) as readable:
+        return _read_pyuff_sets(p, readable, framing, wanted_type, lambda i: unreadable_field(raw, spans[i]))
+
+
+def _read_pyuff_sets(p: str, readable: str, framing, wanted_type: int, explain=lambda i: None) -> list[dict]:
+    import pyuff  # third-party reader, imported where needed
+
     try:
-        uff = pyuff.UFF(p)
+        uff = pyuff.UFF(readable)
         types = [int(t) for t in uff.get_set_types()]
     except Exception as exc:  # pyuff raises bare Exception; re-raise naming the file
         raise UFFReadError(f"{p}: pyuff cannot index the file ({exc})") from exc
-    if types != [t for t, _ in framing]:
+    if types != [f[0] for f in framing]:
         raise UFFReadError(
             f"{p}: the dataset framing is inconsistent ({len(framing)} datasets by their '    -1' tags and "
             f"headers, {len(types)} as indexed by pyuff); the file is corrupt"
@@ -432,7 +450,10 @@ def _read_uff_sets(path: Path, wanted_type: int = 58) -> list[dict]:
     for i in idx:
         try:
             d = uff.read_sets(i)
-        except Exception as exc:  # pyuff raises bare Exception; re-raise naming the file and dataset
+        except Exception as exc:  # pyuff raises bare Exception; re-raise naming the file, dataset and cause
+            bad = explain(i)
+            if bad is not None:
+                raise UFFReadError(f"{p}: {bad}") from exc
             raise UFFReadError(f"{p}: dataset {i + 1} (type {wanted_type}) cannot be read ({exc})") from exc
         if not isinstance(d, dict) or "data" not in d:
             raise UFFReadError(f"{p}: dataset {i + 1} (type {wanted_type}) cannot be read")

@@ -83,11 +83,16 @@ def fe_shapes_at_dofs(fe: FEModes, channels: pd.DataFrame, *, tolerance: float =
     """FE shapes at the test DOFs described by a channel table (node position, direction, fe_node): (n_dof, m_fe)."""
     fe_nodes = channels["fe_node"].tolist() if "fe_node" in channels else [None] * len(channels)
     fe_nodes = [None if (n is None or (isinstance(n, float) and np.isnan(n))) else int(n) for n in fe_nodes]
+    names = ([f"channel {n!r}" + (f" (setup {s})" if isinstance(s, str) and s else "")
+              for n, s in zip(channels["name"], channels["setup"] if "setup" in channels else [""] * len(channels))]
+             if "name" in channels else None)
     return fe.at_points(
         fe_nodes,
         channels[["x", "y", "z"]].to_numpy(float),
         channels[["dx", "dy", "dz"]].to_numpy(float),
         tolerance=tolerance,
+        names=names,
+        max_offset="model",
     )
 
 

@@ -17,9 +17,24 @@ Checks (thresholds in :class:`ScreeningConfig`):
 ``force saturated`` (whole hit)
     The force's extreme value is repeated in at least ``clip_min_samples``
     samples (flat top at the ADC range).
+``force not a pulse`` (whole hit)
+    The force is not the pulse of a hammer tip: its peak is a single sample
+    (both neighbours below ``pulse_level`` x peak — an ADC's anti-aliasing
+    filter spreads even the hardest tip's contact over several samples, so
+    this is a corrupt sample, e.g. a flipped byte or a wrong byte order), or
+    more than ``max_energy_outside`` of the force record's energy lies
+    outside the force window around the main pulse (not an impact record).
 ``force too weak`` (whole hit)
-    Peak force below ``weak_force_ratio`` x the median peak of the test's
-    hits, or below ``min_force_snr`` x the force noise RMS.
+    Peak force below ``weak_force_ratio`` x the median peak of the plausible
+    hits that are not too strong, or below ``min_force_snr`` x the force
+    noise RMS.
+``force too strong`` (whole hit)
+    Peak force above ``strong_force_ratio`` x the median peak of the
+    plausible hits: an operator varies hits by a factor of two or three, not
+    ten (a corrupt sample or a wrong scale factor).
+``dead channel`` (one channel of one hit)
+    The record is constant (all zeros, say): a disconnected sensor or a
+    channel switched off, not an ADC at its range.
 ``clipped`` (one channel of one hit)
     The channel's extreme value (the largest ``|a|``) is repeated exactly in
     at least ``clip_min_samples`` samples: an ADC held at its range. The range
@@ -28,6 +43,18 @@ Checks (thresholds in :class:`ScreeningConfig`):
     and return. A genuine peak is a single sample: with 24-bit converters and
     sensor noise, two samples equal to the maximum to the last bit are very
     unlikely (none in the virtual-lab campaigns' ~1400 unclipped records).
+``level inconsistent`` (one channel of one hit)
+    The channel's response level per unit force (RMS of the record over the
+    force pulse's RMS) differs from its median over the hits by more than
+    ``max_level_spread`` (a structure is linear: the same hammer point gives
+    the same level within the spread of the hits' spectra, a factor of two in
+    the virtual lab). Needs three plausible hits.
+``level off its neighbours`` (one channel, all hits)
+    In the median over the hits, the channel's RMS level differs from the
+    median level of its ``n_neighbours`` nearest sensors (by position) by more
+    than ``max_neighbour_ratio``: a wrong sensitivity or unit (neighbouring
+    sensors of a structure see levels within a decade of each other; a factor
+    12 at most in the virtual lab's setups).
 ``low coherence`` (one channel, all hits)
     After averaging the remaining hits, the channel's coherence is below
     ``min_coherence`` on more than ``max_low_coherence_fraction`` of the band:
@@ -43,6 +70,7 @@ import numpy as np
 import pandas as pd
 
 from .estimate import ForceWindow, _spectra, auto_exp_decay, main_pulse
+from .estimate import force_window as _pulse_window
 from .hammer_io import HammerTest
 
 __all__ = ["ScreeningConfig", "Rejection", "Screening", "screen_hits", "REASONS", "flat_extreme_count"]
@@ -50,7 +78,8 @@ __all__ = ["ScreeningConfig", "Rejection", "Screening", "screen_hits", "REASONS"
 log = logging.getLogger("ema")
 
 #: The reasons a rejection can have.
-REASONS = ("double hit", "force saturated", "force too weak", "clipped", "low coherence")
+REASONS = ("double hit", "force saturated", "force not a pulse", "force too weak", "force too strong", "dead channel",
+           "clipped", "level inconsistent", "level off its neighbours", "low coherence")
 
 
 @dataclass(frozen=True)
@@ -67,6 +96,16 @@ class ScreeningConfig:
         Thresholds are at least this many force-noise RMS.
     weak_force_ratio : float
         A peak force below this fraction of the median peak is too weak.
+    strong_force_ratio : float
+        A peak force above this multiple of the median peak is too strong.
+    max_energy_outside : float
+        Largest fraction of the force energy outside the main pulse's window.
+    max_level_spread : float
+        Largest factor between a channel's level per unit force in one hit and its median over the hits.
+    max_neighbour_ratio : float
+        Largest factor between a channel's level and the median level of its nearest sensors.
+    n_neighbours : int
+        Sensors compared with (nearest by position).
     min_force_snr : float
         A peak force below this many force-noise RMS is too weak.
     clip_min_samples : int
@@ -83,6 +122,11 @@ class ScreeningConfig:
     double_hit_level: float = 0.10
     noise_factor: float = 10.0
     weak_force_ratio: float = 0.2
+    strong_force_ratio: float = 10.0
+    max_energy_outside: float = 0.5
+    max_level_spread: float = 10.0
+    max_neighbour_ratio: float = 100.0
+    n_neighbours: int = 4
     min_force_snr: float = 100.0
     clip_min_samples: int = 2
     min_coherence: float = 0.8
@@ -90,8 +134,14 @@ class ScreeningConfig:
     check_coherence: bool = True
 
     def __post_init__(self) -> None:
+        for name in ("strong_force_ratio", "max_level_spread", "max_neighbour_ratio"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 1):
+                raise ValueError(f"ScreeningConfig.{name} must be a finite factor > 1, got {v!r}")
+        if int(self.n_neighbours) != self.n_neighbours or self.n_neighbours < 1:
+            raise ValueError(f"ScreeningConfig.n_neighbours must be an integer >= 1, got {self.n_neighbours!r}")
         for name in ("pulse_level", "double_hit_level", "weak_force_ratio", "min_coherence",
-                     "max_low_coherence_fraction"):
+                     "max_low_coherence_fraction", "max_energy_outside"):
             v = getattr(self, name)
             if not 0 <= v <= 1:
                 raise ValueError(f"ScreeningConfig.{name} must be in [0, 1], got {v!r}")
@@ -220,6 +270,68 @@ def _robust_rms(x: np.ndarray) -> float:
     return float(1.4826 * np.median(np.abs(x - med)))
 
 
+def _nearest_sensors(channels: pd.DataFrame, k: int) -> list[np.ndarray]:
+    """For each response channel the indices of its ``k`` nearest sensors by position (all others without positions)."""
+    n = len(channels)
+    xyz = channels[["x", "y", "z"]].to_numpy(float) if {"x", "y", "z"} <= set(channels.columns) else np.full((n, 3),
+                                                                                                              np.nan)
+    out = []
+    for j in range(n):
+        others = np.array([i for i in range(n) if i != j], int)
+        if np.all(np.isfinite(xyz)) and others.size:
+            d = np.linalg.norm(xyz[others] - xyz[j], axis=1)
+            others = others[np.argsort(d, kind="stable")[:k]]
+        out.append(others)
+    return out
+
+
+def _check_levels(test: HammerTest, cfg: ScreeningConfig, accepted: np.ndarray, pulse_rms: np.ndarray, reject) -> None:
+    """The level checks of :func:`screen_hits` (``level inconsistent``, ``level off its neighbours``); edits ``accepted``."""
+    names = test.channel_names
+    with np.errstate(over="ignore", invalid="ignore"):
+        level = np.sqrt(np.mean(np.square(test.responses), axis=2))  # (hits, channels) RMS [m/s^2]
+    hit_ok = accepted.any(axis=1) & (pulse_rms > 0)
+    # per unit force, the same channel from hit to hit (a linear structure, one hammer point)
+    if hit_ok.sum() >= 3:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            per_force = level / pulse_rms[:, None]
+        for j in range(test.n_channels):
+            use = hit_ok & accepted[:, j] & np.isfinite(per_force[:, j]) & (per_force[:, j] > 0)
+            if use.sum() < 3:
+                continue
+            med = float(np.median(per_force[use, j]))
+            for h in np.flatnonzero(use):
+                r = per_force[h, j] / med
+                if not 1 / cfg.max_level_spread <= r <= cfg.max_level_spread:
+                    reject(test.hits[h], j, "level inconsistent",
+                           f"response level per unit force {r:.3g} x the channel's median over the hits (limit "
+                           f"{cfg.max_level_spread:g} x either way): a corrupt record (spike, wrong byte order?)")
+                    accepted[h, j] = False
+    # against the neighbouring sensors, in the same hits
+    if test.n_channels < 2:
+        return
+    nb = _nearest_sensors(test.response_channels, int(cfg.n_neighbours))
+    ratios = np.full(test.n_channels, np.nan)
+    for j in range(test.n_channels):
+        rows = np.flatnonzero(accepted[:, j] & hit_ok)
+        if rows.size == 0:
+            continue
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ref = np.median(level[np.ix_(rows, nb[j])], axis=1)
+            r = level[rows, j] / ref
+        r = r[np.isfinite(r) & (r > 0)]
+        if r.size:
+            ratios[j] = float(np.median(r))
+    for j in np.flatnonzero(np.isfinite(ratios)):
+        r = ratios[j]
+        if not 1 / cfg.max_neighbour_ratio <= r <= cfg.max_neighbour_ratio:
+            near = ", ".join(names[i] for i in nb[j])
+            reject(None, j, "level off its neighbours",
+                   f"RMS level {r:.3g} x the median of its {len(nb[j])} nearest sensors ({near}) over the hits "
+                   f"(limit {cfg.max_neighbour_ratio:g} x either way): a wrong sensitivity or unit?")
+            accepted[:, j] = False
+
+
 def screen_hits(
     test: HammerTest,
     *,
@@ -256,16 +368,44 @@ def screen_hits(
         rejections.append(r)
         log.warning("screening %s: %s", src, r)
 
-    # ---- force checks (whole hits)
-    peaks = np.empty(test.n_hits)
+    # ---- force plausibility (whole hits): a hammer pulse, not a corrupt sample
+    n = test.n_samples
+    pulses = [main_pulse(test.force[h], cfg.pulse_level) for h in range(test.n_hits)]
+    peaks = np.array([abs(test.force[h][p[1]]) for h, p in enumerate(pulses)])
+    pulse_rms = np.zeros(test.n_hits)
+    plausible = np.ones(test.n_hits, bool)
     for h, hit in enumerate(test.hits):
         f = test.force[h]
-        start, ip, end, sign = main_pulse(f, cfg.pulse_level)
-        peaks[h] = abs(f[ip])
-    median_peak = float(np.median(peaks))
+        start, ip, end, sign = pulses[h]
+        w = _pulse_window(n, test.fs, start, end, ForceWindow(level=cfg.pulse_level))
+        inside = float(np.sum((f * w) ** 2))
+        total = float(np.sum(f ** 2))
+        pulse_rms[h] = np.sqrt(inside / max(np.count_nonzero(w), 1))
+        if start == end:
+            nb = [abs(f[k]) for k in (ip - 1, ip + 1) if 0 <= k < n]
+            reject(hit, None, "force not a pulse",
+                   f"the force peak {f[ip]:.4g} N at sample {ip} (t = {test.time[ip]:.6g} s) is a single sample, its "
+                   f"neighbours {max(nb) if nb else 0.0:.3g} N; an ADC's anti-aliasing filter spreads any hammer "
+                   f"pulse over several samples: a corrupt sample (flipped byte, wrong byte order?)")
+            plausible[h] = False
+        elif total > 0 and 1 - inside / total > cfg.max_energy_outside:
+            reject(hit, None, "force not a pulse",
+                   f"{100 * (1 - inside / total):.0f} % of the force energy lies outside the main pulse at "
+                   f"t = {test.time[ip]:.6g} s (limit {100 * cfg.max_energy_outside:g} %): not an impact record")
+            plausible[h] = False
+        if not plausible[h]:
+            accepted[h] = False
+
+    # ---- force checks (whole hits); sizes against the median peak of the plausible hits, the weak test
+    # against the hits that are not too strong (one corrupt giant must not make every other hit "weak")
+    median_all = float(np.median(peaks[plausible])) if plausible.any() else 0.0
+    strong = plausible & (peaks > cfg.strong_force_ratio * median_all)
+    median_peak = float(np.median(peaks[plausible & ~strong])) if (plausible & ~strong).any() else median_all
     for h, hit in enumerate(test.hits):
+        if not plausible[h]:
+            continue
         f = test.force[h]
-        start, ip, end, sign = main_pulse(f, cfg.pulse_level)
+        start, ip, end, sign = pulses[h]
         peak = peaks[h]
         noise = _robust_rms(f)
         reasons = []
@@ -275,28 +415,44 @@ def screen_hits(
         if outside.any():
             k = int(np.flatnonzero(outside)[np.argmax((sign * f)[outside])])
             dt_ms = (k - ip) / test.fs * 1e3
+            single = (k == 0 or sign * f[k - 1] <= thr) and (k == n - 1 or sign * f[k + 1] <= thr)
             reasons.append(("double hit", f"second force pulse of {sign * f[k]:.4g} N ({100 * sign * f[k] / peak:.0f} % "
-                            f"of the {peak:.4g} N peak) {dt_ms:+.2f} ms from the main pulse"))
+                            f"of the {peak:.4g} N peak) {dt_ms:+.2f} ms from the main pulse"
+                            + (" (a single sample: a corrupt sample?)" if single else "")))
         n_flat, v = flat_extreme_count(f)
         if n_flat >= cfg.clip_min_samples:
             reasons.append(("force saturated", f"{n_flat} force samples flat at {v:.6g} N"))
-        if peak < cfg.weak_force_ratio * median_peak or peak < cfg.min_force_snr * noise:
+        if not strong[h] and (peak < cfg.weak_force_ratio * median_peak or peak < cfg.min_force_snr * noise):
             reasons.append(("force too weak", f"peak {peak:.4g} N vs median peak {median_peak:.4g} N of the hits "
                             f"(limit {cfg.weak_force_ratio:g} x) and noise RMS {noise:.3g} N (limit "
                             f"{cfg.min_force_snr:g} x)"))
+        if strong[h]:
+            reasons.append(("force too strong", f"peak {peak:.4g} N is {peak / median_all:.3g} x the median peak "
+                            f"{median_all:.4g} N of the hits (limit {cfg.strong_force_ratio:g} x): a corrupt sample "
+                            f"or a wrong scale factor"))
         for reason, detail in reasons:
             reject(hit, None, reason, detail)
         if reasons:
             accepted[h] = False
 
-    # ---- channel clipping (per hit and channel)
+    # ---- dead and clipped channels (per hit and channel)
     for h, hit in enumerate(test.hits):
         for j in range(test.n_channels):
-            n_flat, v = flat_extreme_count(test.responses[h, j])
+            x = test.responses[h, j]
+            lo, hi = float(x.min()), float(x.max())
+            if lo == hi:
+                reject(hit, j, "dead channel", f"all {x.size} samples are {lo:.6g} m/s^2 (a constant record): "
+                                               f"sensor disconnected or channel off")
+                accepted[h, j] = False
+                continue
+            n_flat, v = flat_extreme_count(x)
             if n_flat >= cfg.clip_min_samples:
                 reject(hit, j, "clipped", f"{n_flat} samples flat at {v:.6g} m/s^2, the record's extreme "
                                           f"(ADC range reached)")
                 accepted[h, j] = False
+
+    # ---- levels: per unit force across hits, and against the neighbouring sensors
+    _check_levels(test, cfg, accepted, pulse_rms, reject)
 
     # ---- coherence after averaging (per channel)
     if cfg.check_coherence:

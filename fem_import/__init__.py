@@ -11,6 +11,11 @@ Public API
 ----------
 read(path, format=None, *, geometry=None, **kwargs) -> FEModes
     Read modes through the format registry (format sniffed from content).
+read_with_geometry(path, geometry=None) -> (FEModes, note)
+    The same, with node coordinates from ``geometry`` (UFF 2411 or Nastran
+    bulk GRID cards) or a companion file; says which file is needed.
+check_mass_normalisation(fe, total_mass=None, mass_matrix=None), rigid_body_mass(fe)
+    Mass normalisation against the rigid-body modes, a total mass, a mass matrix.
 formats() -> tuple of str
     Registered format names; :func:`format_info`, :func:`register_format`,
     :func:`unregister_format`, :func:`detect_format`, :func:`read_geometry`,
@@ -44,11 +49,21 @@ from .registry import (
     formats,
     merge_geometry,
     read,
+    read_with_geometry,
+    find_geometry_companion,
     read_geometry,
     register_format,
     unregister_format,
 )
-from . import uff as _uff, punch as _punch  # noqa: E402,F401  (register the built-in readers)
+from . import uff as _uff, punch as _punch, nastran_bulk as _bulk  # noqa: E402,F401  (register the built-in readers)
+from .checks import (  # noqa: E402
+    MassNormalisationError,
+    RigidBodyMass,
+    check_mass_normalisation,
+    check_mode_values,
+    model_size,
+    rigid_body_mass,
+)
 
 _logging.getLogger("fem_import").addHandler(_logging.NullHandler())
 
@@ -56,5 +71,6 @@ __all__ = [
     "read", "formats", "format_info", "register_format", "unregister_format", "detect_format", "read_geometry", "merge_geometry",
     "FEModes", "Element", "Geometry", "FormatInfo", "DOF_NAMES", "shapes_at_channels",
     "FEImportError", "UnknownFormatError", "FEReadError", "FEGeometryError", "MissingCoordinatesError",
-    "PointToleranceError",
+    "PointToleranceError", "read_with_geometry", "find_geometry_companion", "MassNormalisationError", "RigidBodyMass",
+    "check_mass_normalisation", "check_mode_values", "model_size", "rigid_body_mass",
 ]

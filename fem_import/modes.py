@@ -14,6 +14,7 @@ the hybrid model of :mod:`receptance` sums: the modal superposition
 
 from __future__ import annotations
 
+import functools
 import warnings
 from dataclasses import dataclass, field
 
@@ -116,6 +117,15 @@ class FEModes:
             raise KeyError(f"node {node} is not in the FE model ({self.source or 'in memory'})")
         return int(hit[0])
 
+    @functools.cached_property
+    def offset_limit(self) -> float:
+        """Largest point-to-node distance [m] :meth:`at_points` accepts: a quarter of the model size
+        (:func:`fem_import.checks.point_offset_limit`; infinite without coordinates)."""
+        from .checks import point_offset_limit
+
+        limit = point_offset_limit(self)
+        return limit if np.isfinite(limit) and limit > 0 else float("inf")
+
     @property
     def has_coordinates(self) -> bool:
         """True if every node has finite coordinates."""
@@ -181,7 +191,8 @@ class FEModes:
                 f"{int(self.node_ids[rows[k]])} at {dist[k]:.4g} m ({self._where()})")
         return int(self.node_ids[rows[k]])
 
-    def at_points(self, fe_nodes, positions, directions, *, tolerance: float = 0.05, names=None) -> np.ndarray:
+    def at_points(self, fe_nodes, positions, directions, *, tolerance: float = 0.05, names=None,
+                  max_offset=None) -> np.ndarray:
         """Mode shapes at points rigidly attached to FE nodes, along given directions.
 
         For a point ``p`` attached to node ``n`` (position ``x_n``, modal
@@ -208,6 +219,11 @@ class FEModes:
             and for 3-DOF shapes (default 0.05).
         names : sequence of str, optional
             Point names for error messages (default ``"point <k>"``).
+        max_offset : None, "model" or float, optional
+            Refuse a point farther than this from its node [m]; ``"model"``:
+            :attr:`offset_limit` (a quarter of the model size, what tables of
+            sensors and points are checked with); None (default): no check (a
+            rigid link of any length).
 
         Returns
         -------
@@ -226,7 +242,9 @@ class FEModes:
         PointToleranceError
             A 3-DOF model and a point farther than ``tolerance`` from its
             node, or no node within ``tolerance`` (names the point and
-            distance).
+            distance); a point farther from its node than ``max_offset`` (a
+            wrong node or unit, named "looks like mm" when a unit factor
+            explains it).
         """
         tol = _check_tolerance(tolerance)
         d = np.asarray(directions, float)
@@ -281,6 +299,15 @@ class FEModes:
                     f"offset of the point from its node is unknown; read the modes with geometry= "
                     f"(fem_import.read(path, geometry=...)) or pass positions=None for points at their nodes")
             offset = pos - node_xyz
+            if max_offset is not None:
+                # a rigid link longer than a quarter of the structure is a wrong node or a wrong unit
+                limit = self.offset_limit if isinstance(max_offset, str) else float(max_offset)
+                far = np.linalg.norm(offset, axis=1) > limit
+                if far.any():
+                    from .checks import check_point_offsets
+
+                    k = int(np.argmax(far))
+                    check_point_offsets(self, [self.node_ids[rows[k]]], pos[k:k + 1], [names[k]], limit=limit)
         u = self.shapes[:, rows, :3]
         if self.has_rotations:
             disp = u + np.cross(self.shapes[:, rows, 3:], offset[None, :, :])
@@ -334,7 +361,9 @@ def shapes_at_channels(fe_modes: FEModes, channels, *, tolerance: float = 0.05,
     ValueError
         If a required column is missing (names it) or no row is kept.
     FEGeometryError
-        As :meth:`FEModes.at_points`, naming the channel.
+        As :meth:`FEModes.at_points`, naming the channel; a sensor farther
+        from its ``fe_node`` than a quarter of the model size
+        (:attr:`FEModes.offset_limit`) is refused (PointToleranceError).
     """
     import pandas as pd
 
@@ -360,4 +389,4 @@ def shapes_at_channels(fe_modes: FEModes, channels, *, tolerance: float = 0.05,
     else:
         nodes = None
     return fe_modes.at_points(nodes, rows[["x", "y", "z"]].to_numpy(float), rows[["dx", "dy", "dz"]].to_numpy(float),
-                              tolerance=tolerance, names=names)
+                              tolerance=tolerance, names=names, max_offset="model")

@@ -27,7 +27,8 @@ from .errors import FEReadError, UnknownFormatError
 from .modes import Element, FEModes
 
 __all__ = ["FormatInfo", "Geometry", "register_format", "unregister_format", "formats", "format_info",
-           "detect_format", "read", "read_geometry", "merge_geometry"]
+           "detect_format", "read", "read_geometry", "merge_geometry", "find_geometry_companion",
+           "read_with_geometry", "COMPANION_SUFFIXES"]
 
 log = logging.getLogger("fem_import")
 
@@ -96,7 +97,7 @@ def _load_builtins() -> None:
     global _BUILTINS_LOADED
     if not _BUILTINS_LOADED:
         _BUILTINS_LOADED = True
-        from . import uff, punch  # noqa: F401  (they register themselves, in this order)
+        from . import uff, punch, nastran_bulk  # noqa: F401  (they register themselves, in this order)
 
 
 def register_format(name: str, *, patterns, sniff, reader, geometry=None, description: str = "",
@@ -358,10 +359,78 @@ def read(path, format: str | None = None, *, geometry=None, **kwargs) -> FEModes
     >>> modes.freqs_hz[6]  # doctest: +SKIP
     71.53...
     """
+    from .checks import check_mode_values
+
     p = _check_file(path)
     info = format_info(format) if format is not None else detect_format(p)
     modes = info.reader(str(p), **kwargs)
+    check_mode_values(modes, source=str(p))
     if geometry is not None:
         modes = merge_geometry(modes, geometry)
     log.info("read %d modes on %d nodes from %s (%s)", len(modes), modes.node_ids.size, p, info.name)
     return modes
+
+
+#: File extensions of a geometry companion (same stem as the modes file), in order of preference.
+COMPANION_SUFFIXES = (".bdf", ".dat", ".nas", ".blk", ".uff", ".unv")
+
+
+def find_geometry_companion(path) -> Path | None:
+    """A file beside ``path`` with the same stem that carries node coordinates (``.bdf``, ``.dat``, ``.nas``,
+    ``.blk``, ``.uff``, ``.unv``), or None."""
+    p = Path(os.fspath(path))
+    for suffix in COMPANION_SUFFIXES:
+        for cand in (p.with_suffix(suffix), p.with_suffix(suffix.upper())):
+            if cand != p and cand.is_file():
+                try:
+                    info = detect_format(cand)
+                except (UnknownFormatError, OSError):
+                    continue
+                if info.geometry is not None:
+                    return cand
+    return None
+
+
+def read_with_geometry(path, geometry=None, *, option: str = "--geometry") -> tuple[FEModes, str]:
+    """FE modes with node coordinates: from the file itself, from ``geometry``, or from a companion file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The modes file (UFF, Nastran punch).
+    geometry : str or os.PathLike, optional
+        A file with node coordinates (UFF 2411 or Nastran bulk GRID cards).
+    option : str
+        How the geometry is asked for on the command line, for the message.
+
+    Returns
+    -------
+    (FEModes, str)
+        The modes and a note saying where the coordinates came from.
+
+    Raises
+    ------
+    MissingCoordinatesError
+        The modes file has no coordinates, none was given and no companion
+        file was found: the message says which file is needed.
+    """
+    from .errors import MissingCoordinatesError
+
+    p = Path(os.fspath(path))
+    if geometry is not None:
+        fe = read(p, geometry=geometry)
+        return fe, f"node coordinates from {geometry}"
+    fe = read(p)
+    if fe.has_coordinates:
+        return fe, f"node coordinates from {p.name}"
+    companion = find_geometry_companion(p)
+    if companion is not None:
+        log.info("%s has no node coordinates; using those of the companion file %s", p, companion)
+        return merge_geometry(fe, companion), (f"node coordinates from the companion file {companion} "
+                                               f"(pass {option} to choose another)")
+    raise MissingCoordinatesError(
+        f"{p} ({fe.format or 'FE modes'}) holds no node coordinates, and the sensors and points must be placed on "
+        f"the FE nodes: give {option} FILE (a universal file with dataset 2411, or a Nastran bulk data file with "
+        f"GRID cards, e.g. {p.with_suffix('.bdf').name}); no companion file "
+        f"{'/'.join(p.with_suffix(s).name for s in COMPANION_SUFFIXES[:3])}/{p.with_suffix('.uff').name} was found "
+        f"next to it")

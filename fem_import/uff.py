@@ -45,6 +45,7 @@ import numpy as np
 from .errors import FEReadError
 from .modes import Element, FEModes
 from .registry import Geometry, register_format
+from .uff_text import DatasetSpan, fortran_field_problem, prepare_for_pyuff, unreadable_field
 
 __all__ = ["read_uff", "read_uff_geometry", "sniff_uff"]
 
@@ -178,15 +179,39 @@ class _Parts:
         self.history: list[str] = []
 
 
-def _read_parts(path: str, *, want_modes: bool) -> _Parts:
-    import pyuff
+def _spans(data: bytes, frames) -> list[DatasetSpan]:
+    """The datasets framed by ``_check_framing`` as :class:`~fem_import.uff_text.DatasetSpan`."""
+    out = []
+    for k, (_, s, e) in enumerate(frames, 1):
+        head = data.find(b"\n", s) + 1
+        line = data[head:data.find(b"\n", head) if data.find(b"\n", head) >= 0 else e]
+        try:
+            kind = int(line[:6])
+        except ValueError:
+            kind = -1
+        out.append(DatasetSpan(k, kind, line[6:7] in (b"b", b"B"), head, e))
+    return out
 
+
+def _read_parts(path: str, *, want_modes: bool) -> _Parts:
     with open(path, "rb") as fh:
         data = fh.read()
     frames = _check_framing(path, data)
+    spans = _spans(data, frames)
+    problem, _ = fortran_field_problem(data, spans)
+    if problem is not None:
+        raise FEReadError(path, f"record {problem.record}: field {problem.field!r}: {problem.cause}",
+                          dataset=f"{problem.dataset} (type {problem.set_type})", line=problem.line)
+    with prepare_for_pyuff(path, data, spans) as readable:
+        return _read_parts_with(path, readable, data, frames, want_modes=want_modes)
+
+
+def _read_parts_with(path: str, readable: str, data: bytes, frames, *, want_modes: bool) -> _Parts:
+    import pyuff
+
     start_lines = [f[0] for f in frames]
     try:
-        uf = pyuff.UFF(path)
+        uf = pyuff.UFF(readable)
         types = np.asarray(uf.get_set_types(), dtype=np.int64)
     except Exception as exc:  # pyuff raises bare Exception
         raise FEReadError(path, f"pyuff could not index the datasets: {exc}") from exc
@@ -219,6 +244,11 @@ def _read_parts(path: str, *, want_modes: bool) -> _Parts:
                                       line=line) from exc
                 hint = (" (pyuff reads at most 8 node labels per element and expects the beam record for "
                         "descriptors 11, 21-24)")
+            bad = unreadable_field(data, _spans(data, frames)[k]) if kind == 55 else None
+            if bad is not None:
+                raise FEReadError(path, f"record {bad.record}: {bad.field!r}: {bad.cause}",
+                                  dataset=f"{bad.dataset} (type 55, mode {len(parts.modes) + 1})",
+                                  line=bad.line) from exc
             raise FEReadError(path, f"pyuff could not read this dataset: {exc}{hint}", dataset=str(kind),
                               line=line) from exc
         if not isinstance(dset, dict):
@@ -232,6 +262,14 @@ def _read_parts(path: str, *, want_modes: bool) -> _Parts:
             element_sets.append((dset, line))
         else:
             parts.modes.append(_mode(path, dset, line, len(parts.modes) + 1))
+    odd: dict = {}
+    for md in parts.modes:
+        if md["spec"] not in (8, 0, None):
+            odd.setdefault(md["spec"], []).append(md["k"])
+    for spec, ks in odd.items():
+        # once per file with a count, not once per dataset
+        log.warning("%s: %d dataset(s) 55 (modes %s): specific data type %s is not displacement (8); read as "
+                    "mode shape", path, len(ks), _ranges(ks), spec)
     if ignored:
         level = logging.INFO if want_modes else logging.DEBUG
         log.log(level, "%s: datasets not used by the FE reader: %s", path,
@@ -258,6 +296,21 @@ def _read_parts(path: str, *, want_modes: bool) -> _Parts:
             parts.elements.append(el)
     parts.elements.sort(key=lambda e: e.element_id)
     return parts
+
+
+def _ranges(numbers) -> str:
+    """``[1, 2, 3, 7]`` -> ``"1-3, 7"``."""
+    out, run = [], []
+    for n in sorted(numbers):
+        if run and n == run[-1] + 1:
+            run.append(n)
+            continue
+        if run:
+            out.append(f"{run[0]}-{run[-1]}" if len(run) > 1 else str(run[0]))
+        run = [n]
+    if run:
+        out.append(f"{run[0]}-{run[-1]}" if len(run) > 1 else str(run[0]))
+    return ", ".join(out)
 
 
 def _nodes(path, dset, kind, line) -> tuple[np.ndarray, np.ndarray, int]:
@@ -340,9 +393,6 @@ def _mode(path, dset, line, k) -> dict:
         raise FEReadError(path, f"data characteristic {ch!r} with {per!r} values per node; expected 2 (3 DOF "
                           f"translation, 3 values) or 3 (6 DOF translation and rotation, 6 values)",
                           dataset=where, line=line)
-    if dset.get("spec_data_type") not in (8, 0, None):
-        log.warning("%s, dataset %s: specific data type %s is not displacement (8); read as mode shape",
-                    path, where, dset.get("spec_data_type"))
     try:
         nodes = np.asarray(dset["node_nums"])
         vals = np.column_stack([np.asarray(dset[f"r{i}"], dtype=float) for i in range(1, per + 1)])
@@ -369,7 +419,7 @@ def _mode(path, dset, line, k) -> dict:
         raise FEReadError(path, f"mode {k} has modal mass {mm!r}; expected a positive number (or 0 for "
                           f"'mass-normalised')", dataset=where, line=line)
     return {"k": k, "mode_n": dset.get("mode_n"), "freq": freq, "modal_mass": mm, "ids": ids, "vals": vals,
-            "line": line}
+            "line": line, "spec": dset.get("spec_data_type")}
 
 
 def read_uff_geometry(path: str) -> Geometry:

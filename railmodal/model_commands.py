@@ -6,6 +6,11 @@ import argparse
 import sys
 from pathlib import Path
 
+import numpy as np
+
+from railmodal.arguments import (band_action, bounded_float, bounded_int, existing_file, existing_folder,
+                                 output_folder)
+
 __all__ = ["add_model_commands"]
 
 
@@ -24,30 +29,52 @@ def _agg():
     return plt
 
 
+#: Frequency axis of ``model track`` [Hz] and the most lines it computes.
+TRACK_BAND_HZ = (1.0, 2000.0)
+MAX_TRACK_LINES = 200_000
+
+
+def _track_lines(df: float) -> str | None:
+    n = int(np.floor((TRACK_BAND_HZ[1] - TRACK_BAND_HZ[0]) / df)) + 1
+    if n > MAX_TRACK_LINES:
+        return f"{n} frequency lines over {TRACK_BAND_HZ[0]:g}-{TRACK_BAND_HZ[1]:g} Hz, at most {MAX_TRACK_LINES}"
+    return None
+
+
 def _cmd_track(args: argparse.Namespace) -> int:
-    import numpy as np
     import pandas as pd
 
     from receptance.plot_track import plot_track_receptance
     from receptance.track import pinned_pinned_frequency, track_receptance
-    from receptance.trackform import Trackform, load_trackform
+    from receptance.trackform import Trackform, TrackformError, check_trackform, load_trackform
+
+    from railmodal.output import staged_output
 
     plt = _agg()
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    tf = load_trackform(args.trackform) if args.trackform else Trackform()
-    f = np.arange(1.0, 2000.0 + 0.5 * args.df, args.df)
+    # validate first: the trackform (file or Table 2.2), then compute, then write
+    tf = load_trackform(args.trackform) if args.trackform else check_trackform(Trackform(), "thesis Table 2.2")
+    source = str(args.trackform) if args.trackform else "thesis Table 2.2"
+    f = np.arange(TRACK_BAND_HZ[0], TRACK_BAND_HZ[1] + 0.5 * args.df, args.df)
+    f = f[f <= TRACK_BAND_HZ[1] * (1 + 1e-12)]
     v = track_receptance(f, tf, "vertical", supports=args.supports)
     lat = track_receptance(f, tf, "lateral", supports=args.supports)
+    for name, h in (("vertical", v), ("lateral", lat)):
+        bad = ~np.isfinite(h)
+        if bad.any():
+            raise TrackformError(f"{source}: the {name} receptance is not finite at {f[bad][0]:g} Hz with these "
+                                 f"parameters; check the trackform's values")
     df = pd.DataFrame({"f_hz": f, "vertical_re": v.real, "vertical_im": v.imag, "lateral_re": lat.real,
                        "lateral_im": lat.imag})
-    df.to_csv(out / "track_receptance.csv", index=False, float_format="%.9e")
     supports = ("continuous", "discrete") if args.supports == "discrete" else ("continuous",)
     fig = plot_track_receptance(f, tf, supports=supports)
-    fig.savefig(out / "track_receptance.png", dpi=120)
+    out = Path(args.out)
+    with staged_output(out) as tmp:
+        df.to_csv(tmp / "track_receptance.csv", index=False, float_format="%.9e")
+        fig.savefig(tmp / "track_receptance.png", dpi=120)
     plt.close(fig)
+    above = f > 20
     for name, h in (("vertical", v), ("lateral", lat)):
-        k = np.argmax(np.abs(h) * (f > 20))
+        k = int(np.argmax(np.where(above, np.abs(h), -np.inf))) if above.any() else int(np.argmax(np.abs(h)))
         print(f"{name:8s}: static {abs(h[0]):.3e} m/N at {f[0]:g} Hz; largest above 20 Hz {abs(h[k]):.3e} m/N "
               f"at {f[k]:g} Hz")
     print(f"pinned-pinned (exact Timoshenko span): {pinned_pinned_frequency(tf):.1f} Hz")
@@ -66,47 +93,81 @@ def _keep_fe(text: str):
                                          f"got {text!r}") from None
 
 
-def _cmd_build(args: argparse.Namespace) -> int:
-    import numpy as np
+#: Most hammer files ``model build`` validates against, and most perturbed models of the robustness study.
+MAX_VALIDATION_FILES = 8
+MAX_ROBUSTNESS_MODELS = 5000
 
+
+def _cmd_build(args: argparse.Namespace) -> int:
     import fem_import
-    from receptance.dofs import read_points
-    from receptance.hybrid import hybrid_model
+    from ema.channels import read_channels
+    from fem_import.modes import shapes_at_channels
+    from receptance.dofs import check_points, read_points
+    from receptance.hybrid import check_fe_for_model, hybrid_model
     from receptance.model_io import save_model
     from receptance.modification import PrimarySuspension
     from receptance.plot_model import plot_receptances
 
+    from railmodal.output import staged_output
+
     plt = _agg()
     step = _progress(args.quiet)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    hammers, channels = list(args.hammer or []), list(args.channels or [])
+    if len(hammers) != len(channels):
+        args._build_parser.error(f"each --hammer needs its --channels (in the same order): got {len(hammers)} "
+                                 f"--hammer and {len(channels)} --channels")
+    if len(hammers) > MAX_VALIDATION_FILES:
+        args._build_parser.error(f"at most {MAX_VALIDATION_FILES} --hammer files, got {len(hammers)}")
+    # ---- validate every input before any work
     step(f"reading {args.fem}")
-    fe = fem_import.read(args.fem)
+    fe, where = fem_import.read_with_geometry(args.fem, args.geometry)
+    step(where)
+    rb = check_fe_for_model(fe, total_mass=args.total_mass)
+    if rb is not None:
+        step(f"rigid-body modes: total mass {rb.mass:.1f} kg (mass-normalised shapes)")
     points = read_points(args.points)
+    check_points(fe, points, source=str(args.points))
+    tables = [read_channels(c) for c in channels]
     free = hybrid_model(fe, args.pairing, points=points, keep_fe=args.keep_fe, default_zeta=args.default_zeta)
+    for table in tables:
+        shapes_at_channels(free.fe, table)  # every sensor near its fe_node (named in the error)
+    # ---- work
     model = free if args.free_free else free.with_modification(PrimarySuspension())
-    path = save_model(model, out / "hybrid_model.npz")
-    free.table.to_csv(out / "modes.csv", index=False, float_format="%.6g")
     system_modes = model.modes()
-    system_modes.to_csv(out / "system_modes.csv", index=False, float_format="%.6g")
-    print(free.table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+    bad = ~np.isfinite(system_modes["f_hz"].to_numpy(float)) | (system_modes["zeta"].to_numpy(float) >= 1)
+    if bad.any():
+        r = system_modes[bad].iloc[0]
+        raise ValueError(f"the model built from {args.fem} has a mode at {r['f_hz']:.4g} Hz with damping ratio "
+                         f"{r['zeta']:.3g}: not a structure; check the FE export's normalisation and units")
     state = "free-free" if args.free_free else "in service (primary suspension, thesis Table 2.1)"
-    print(f"{state}: lowest modes " + ", ".join(f"{r.f_hz:.2f} Hz (zeta {100 * r.zeta:.1f} %)"
-                                                 for r in system_modes.head(6).itertuples()))
     f = np.linspace(args.band[0], args.band[1], 2000)
     step("receptances between contact points and axleboxes")
     H = model.receptance(["contact_L:z", "axlebox_L:z", "contact_R:z", "axlebox_R:z", "contact_L:y",
                           "axlebox_L:y"], ["contact_L:z", "contact_L:y"], f)
-    fig = plot_receptances(H, [("contact_L:z", "contact_L:z"), ("axlebox_L:z", "contact_L:z"),
-                               ("contact_R:z", "contact_L:z"), ("axlebox_R:z", "contact_L:z"),
-                               ("contact_L:y", "contact_L:y"), ("axlebox_L:y", "contact_L:y")],
-                           title=f"wheelset receptances, {state}")
-    fig.savefig(out / "receptances.png", dpi=120)
-    plt.close(fig)
-    written = [path, out / "modes.csv", out / "system_modes.csv", out / "receptances.png"]
-    written += _transfer_plots(model, f, args, out, step)
-    for hammer, channels in zip(args.hammer or [], args.channels or []):
-        written += _validation(free, hammer, channels, out, step)
+    out = Path(args.out)
+    with staged_output(out) as tmp:
+        path = save_model(model, tmp / "hybrid_model.npz")
+        free.table.to_csv(tmp / "modes.csv", index=False, float_format="%.6g")
+        system_modes.to_csv(tmp / "system_modes.csv", index=False, float_format="%.6g")
+        fig = plot_receptances(H, [("contact_L:z", "contact_L:z"), ("axlebox_L:z", "contact_L:z"),
+                                   ("contact_R:z", "contact_L:z"), ("axlebox_R:z", "contact_L:z"),
+                                   ("contact_L:y", "contact_L:y"), ("axlebox_L:y", "contact_L:y")],
+                               title=f"wheelset receptances, {state}")
+        fig.savefig(tmp / "receptances.png", dpi=120)
+        plt.close(fig)
+        written = [path, tmp / "modes.csv", tmp / "system_modes.csv", tmp / "receptances.png"]
+        written += _transfer_plots(model, f, args, tmp, step)
+        lines = []
+        for hammer, table in zip(hammers, tables):
+            paths, line = _validation(free, hammer, table, tmp, step)
+            written += paths
+            lines.append(line)
+        written = [out / p.relative_to(tmp) for p in written]
+    print(free.table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+    print(f"{state}: lowest modes " + ", ".join(f"{r.f_hz:.2f} Hz (zeta {100 * r.zeta:.1f} %)"
+                                                 for r in system_modes.head(6).itertuples()))
+    for line in lines:
+        print(line)
     print("written: " + ", ".join(str(p) for p in written))
     return 0
 
@@ -150,18 +211,15 @@ def _transfer_plots(model, f, args, out: Path, step) -> list[Path]:
     return written
 
 
-def _validation(model, hammer: str, channels: str, out: Path, step) -> list[Path]:
-    import pandas as pd
-
+def _validation(model, hammer, table, out: Path, step) -> tuple[list[Path], str]:
     from ema import estimate_frf, read_hammer
     from receptance.compare import compare_frf
     from receptance.plot_model import plot_channel_errors, plot_comparison
 
     plt = _agg()
     step(f"validating the free-free model against {hammer}")
-    test = read_hammer(hammer, channels)
+    test = read_hammer(hammer, table)
     H = estimate_frf(test)
-    table = pd.read_csv(channels)
     c = compare_frf(model, H, table)
     stem = Path(hammer).stem
     c.channels.to_csv(out / f"validation_{stem}.csv", index=False, float_format="%.6g")
@@ -171,38 +229,65 @@ def _validation(model, hammer: str, channels: str, out: Path, step) -> list[Path
     fig = plot_channel_errors(c)
     fig.savefig(out / f"validation_{stem}_errors.png", dpi=110)
     plt.close(fig)
-    print(f"{stem}: model vs measurement {c.band_hz[0]:g}–{c.band_hz[1]:g} Hz, median {c.summary_db:.2f} dB RMS, "
-          f"complex error median {100 * c.channels['rel_error'].median():.2f} %, worst channel "
-          f"{c.channels.sort_values('db_rms').iloc[-1]['channel']}")
-    return [out / f"validation_{stem}.csv", out / f"validation_{stem}_worst.png", out / f"validation_{stem}_errors.png"]
+    line = (f"{stem}: model vs measurement {c.band_hz[0]:g}–{c.band_hz[1]:g} Hz, median {c.summary_db:.2f} dB RMS, "
+            f"complex error median {100 * c.channels['rel_error'].median():.2f} %, worst channel "
+            f"{c.channels.sort_values('db_rms').iloc[-1]['channel']}")
+    return [out / f"validation_{stem}.csv", out / f"validation_{stem}_worst.png",
+            out / f"validation_{stem}_errors.png"], line
 
 
 def add_model_commands(sub) -> None:
-    """Register ``railmodal model track`` and ``railmodal model build`` on the top-level subparsers."""
+    """Register ``railmodal model track`` and ``railmodal model build`` on the top-level subparsers.
+
+    Every option is typed and bounded (:mod:`railmodal.arguments`): a bad value stops the command before any work
+    with a message naming the option, its range and the value.
+    """
     model = sub.add_parser("model", help="track receptance and hybrid wheelset model")
     msub = model.add_subparsers(dest="model_command", required=True)
     tr = msub.add_parser("track", help="rail point receptances (thesis §2.4) -> track_receptance.csv and plot")
-    tr.add_argument("--trackform", default=None, help="TOML/JSON trackform file (default: thesis Table 2.2)")
+    tr.add_argument("--trackform", default=None, type=existing_file("--trackform", "trackform (TOML/JSON)"),
+                    help="TOML/JSON trackform file (default: thesis Table 2.2)")
     tr.add_argument("--supports", choices=("continuous", "discrete"), default="continuous",
                     help="continuous two-layer support (default) or discrete supports every L_s (mid-span)")
-    tr.add_argument("--df", type=float, default=1.0, help="frequency step [Hz] over 1–2000 Hz (default 1)")
-    tr.add_argument("--out", required=True)
+    tr.add_argument("--df", type=bounded_float("--df", 0.0, 100.0, lo_open=True, unit="Hz", check=_track_lines), default=1.0,
+                    help=f"frequency step [Hz] over {TRACK_BAND_HZ[0]:g}–{TRACK_BAND_HZ[1]:g} Hz, at most 100 Hz and at "
+                         f"most {MAX_TRACK_LINES} lines (default 1)")
+    tr.add_argument("--out", required=True, type=output_folder("--out"))
     tr.set_defaults(func=_cmd_track)
     b = msub.add_parser("build", help="hybrid wheelset model from a pairing (thesis §2.3) + transfer functions")
-    b.add_argument("--pairing", required=True, help="folder (or CSV) written by 'railmodal lab pair'")
-    b.add_argument("--fem", required=True, help="the FE modes file the pairing used")
-    b.add_argument("--points", required=True, help="points table CSV: name, fe_node, x, y, z (contact_L, axlebox_L...)")
+    b.add_argument("--pairing", required=True,
+                   type=existing_folder("--pairing", "pairing (folder of 'railmodal lab pair' or its pairing.csv)",
+                                        file_ok=True),
+                   help="folder (or CSV) written by 'railmodal lab pair'")
+    b.add_argument("--fem", required=True, type=existing_file("--fem", "FE modes"),
+                   help="the FE modes file the pairing used (UFF 2411/2412/55 or Nastran .pch)")
+    b.add_argument("--geometry", default=None, type=existing_file("--geometry", "geometry"),
+                   help="node coordinates for an FE file without them (a Nastran punch): a UFF with dataset 2411 or "
+                        "a Nastran bulk data file with GRID cards (default: a companion file of the same name, "
+                        ".bdf/.dat/.nas/.uff)")
+    b.add_argument("--points", required=True, type=existing_file("--points", "points table"),
+                   help="points table CSV: name, fe_node, x, y, z (contact_L, axlebox_L...)")
+    b.add_argument("--total-mass", type=bounded_float("--total-mass", 0.0, 1e6, lo_open=True, unit="kg"),
+                   default=None, help="the wheelset's mass [kg] to check the FE shapes' mass normalisation against "
+                                      "(default: the physical range of a railway wheelset)")
     b.add_argument("--keep-fe", type=_keep_fe, default="none",
                    help="FE-only modes to keep: none (thesis Table 3.1 policy), unpaired, all, or numbers 20,21")
-    b.add_argument("--default-zeta", type=float, default=1e-3, help="damping ratio of kept FE-only modes")
+    b.add_argument("--default-zeta", type=bounded_float("--default-zeta", 0.0, 1.0, hi_open=True), default=1e-3,
+                   help="damping ratio of kept FE-only modes, in [0, 1) (default 0.001)")
     b.add_argument("--free-free", action="store_true", help="do not add the primary suspension")
-    b.add_argument("--band", nargs=2, type=float, default=[1.0, 500.0], metavar=("LOW", "HIGH"),
-                   help="frequency range of the plots [Hz]")
-    b.add_argument("--theta", nargs=2, type=float, default=[0.0, 0.0], metavar=("LEFT", "RIGHT"),
-                   help="contact-plane angles θ_L, θ_R [deg] for the vertical+lateral model (eq. 2.12)")
-    b.add_argument("--robustness-models", type=int, default=50,
-                   help="perturbed models of the robustness study (thesis §4.2: 50)")
-    b.add_argument("--hammer", action="append", help="optional: hammer-test UFF to validate the model against")
-    b.add_argument("--channels", action="append", help="channel table of each --hammer file")
-    b.add_argument("--out", required=True)
-    b.set_defaults(func=_cmd_build)
+    b.add_argument("--band", nargs=2, type=bounded_float("--band", 0.0, 1e5, lo_open=True, unit="Hz"),
+                   action=band_action("--band", 0.0, 1e5), default=[1.0, 500.0], metavar=("LOW", "HIGH"),
+                   help="frequency range of the plots [Hz], 0 < LOW < HIGH <= 1e5 (default 1 500)")
+    b.add_argument("--theta", nargs=2, type=bounded_float("--theta", -90.0, 90.0, lo_open=True, hi_open=True,
+                                                          unit="deg"),
+                   default=[0.0, 0.0], metavar=("LEFT", "RIGHT"),
+                   help="contact-plane angles θ_L, θ_R [deg] in (-90, 90) for the vertical+lateral model (eq. 2.12)")
+    b.add_argument("--robustness-models", type=bounded_int("--robustness-models", 2, MAX_ROBUSTNESS_MODELS),
+                   default=50, help=f"perturbed models of the robustness study, 2 to {MAX_ROBUSTNESS_MODELS} "
+                                    f"(thesis §4.2: 50)")
+    b.add_argument("--hammer", action="append", type=existing_file("--hammer", "hammer-test (UFF58)"),
+                   help="optional: hammer-test UFF to validate the model against")
+    b.add_argument("--channels", action="append", type=existing_file("--channels", "channel table"),
+                   help="channel table of each --hammer file")
+    b.add_argument("--out", required=True, type=output_folder("--out"))
+    b.set_defaults(func=_cmd_build, _build_parser=b)

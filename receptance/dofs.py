@@ -20,8 +20,8 @@ import numpy as np
 import pandas as pd
 
 __all__ = [
-    "THESIS_DOFS", "Point", "Dof", "DofError", "read_points", "parse_dof", "parse_dofs", "dofs_from_channels",
-    "shifted_point",
+    "THESIS_DOFS", "Point", "Dof", "DofError", "read_points", "check_points", "parse_dof", "parse_dofs",
+    "dofs_from_channels", "shifted_point",
 ]
 
 #: thesis Fig. 2.5 numbering -> name
@@ -90,34 +90,93 @@ class Dof:
 def read_points(path: str | Path) -> dict[str, Point]:
     """Read a points table (``name, fe_node, x, y, z``; e.g. the lab's ``points.csv``).
 
+    The separator and a decimal comma are detected, a UTF-8 byte-order mark
+    is accepted (:func:`ema.channels.read_table_csv`).
+
+    Raises
+    ------
+    FileNotFoundError
+        No such file.
+    DofError
+        A folder instead of a file, missing columns, duplicate or empty names,
+        a value that is not a number or a node label that is not a positive
+        integer (names the file, the row, the column and the value).
+    """
+    from ema.channels import MAX_NODE, read_table_csv
+
+    path = Path(path)
+    df = read_table_csv(path, role="points table", required=("name", "fe_node", "x", "y", "z"), error=DofError)
+    missing = [c for c in ("name", "fe_node", "x", "y", "z") if c not in df.columns]
+    if missing:
+        raise DofError(f"{path}: points table lacks column(s) {missing}; expected name, fe_node, x, y, z "
+                       f"(found {list(df.columns)})")
+    if len(df) == 0:
+        raise DofError(f"{path}: the points table has no rows")
+    names = df["name"].astype(object)
+    for k, v in enumerate(names):
+        if pd.isna(v) or not str(v).strip():
+            raise DofError(f"{path}, row {k + 1}, column 'name': the point name is missing")
+    names = names.astype(str).str.strip()
+    if names.duplicated().any():
+        raise DofError(f"{path}: duplicate point name(s) {sorted(names[names.duplicated()].unique())}")
+    points = {}
+    for k, (name, row) in enumerate(zip(names, df.itertuples(index=False)), 1):
+        node = _cell(path, k, "fe_node", getattr(row, "fe_node"), name)
+        if node is not None and not (node == round(node) and 0 < node <= MAX_NODE):
+            raise DofError(f"{path}, row {k} ({name}), column 'fe_node': expected a positive integer node label up "
+                           f"to {MAX_NODE}, got {getattr(row, 'fe_node')!r}")
+        xyz = [_cell(path, k, c, getattr(row, c), name) for c in ("x", "y", "z")]
+        if any(v is None for v in xyz) and not all(v is None for v in xyz):
+            c = ("x", "y", "z")[[v is None for v in xyz].index(True)]
+            raise DofError(f"{path}, row {k} ({name}), column {c!r}: the coordinate is missing (give x, y and z, "
+                           f"or none for a point at its node)")
+        try:
+            points[name] = Point(name, None if node is None else int(node),
+                                 None if xyz[0] is None else tuple(xyz))
+        except DofError as exc:
+            raise DofError(f"{path}, row {k}: {exc}") from None
+    return points
+
+
+def _cell(path: Path, row: int, column: str, value, name: str) -> float | None:
+    """A numeric cell as float (None when empty), or DofError naming file, row, column and value."""
+    if value is None or (isinstance(value, float) and np.isnan(value)) or (isinstance(value, str) and not value.strip()):
+        return None
+    try:
+        v = float(value)
+    except (TypeError, ValueError, OverflowError):
+        raise DofError(f"{path}, row {row} ({name}), column {column!r}: expected a number, got {value!r}") from None
+    if not np.isfinite(v):
+        raise DofError(f"{path}, row {row} ({name}), column {column!r}: expected a finite number, got {value!r}")
+    return v
+
+
+def check_points(fe, points: Mapping[str, Point], *, source: str = "") -> None:
+    """Every point's ``fe_node`` is in the FE model and the point lies near it.
+
+    The tolerance scales with the model (:data:`fem_import.checks.POINT_OFFSET_FRACTION`
+    of its size); a point explained by a unit slip is named so ("looks like
+    cm").
+
     Raises
     ------
     DofError
-        Missing columns, duplicate names, non-integer nodes (names the file and row).
+        An fe_node that is not in the FE model (names the point and the source).
+    fem_import.PointToleranceError
+        A point far from its node.
     """
-    path = Path(path)
-    try:
-        df = pd.read_csv(path)
-    except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
-        raise DofError(f"{path}: cannot read the points table: {exc}") from exc
-    missing = [c for c in ("name", "fe_node", "x", "y", "z") if c not in df.columns]
-    if missing:
-        raise DofError(f"{path}: points table lacks column(s) {missing}; expected name, fe_node, x, y, z")
-    if df["name"].duplicated().any():
-        raise DofError(f"{path}: duplicate point name(s) {sorted(df['name'][df['name'].duplicated()].unique())}")
-    points = {}
-    for k, row in df.iterrows():
-        node = row["fe_node"]
-        if pd.isna(node):
-            node = None
-        elif float(node) != round(float(node)):
-            raise DofError(f"{path}, row {k + 2}: fe_node must be an integer node label, got {node!r}")
-        xyz = (row["x"], row["y"], row["z"])
-        try:
-            points[str(row["name"])] = Point(str(row["name"]), node, None if pd.isna(list(xyz)).any() else xyz)
-        except DofError as exc:
-            raise DofError(f"{path}, row {k + 2}: {exc}") from None
-    return points
+    from fem_import.checks import check_point_offsets
+
+    where = f"{source}: " if source else ""
+    known = set(np.asarray(fe.node_ids).tolist())
+    for p in points.values():
+        if p.fe_node is not None and p.fe_node not in known:
+            raise DofError(f"{where}point {p.name!r}: fe_node {p.fe_node} is not a node of the FE model "
+                           f"({fe.source or 'FE modes'}, {len(known)} nodes)")
+    placed = [p for p in points.values() if p.fe_node is not None and p.xyz is not None]
+    if placed and fe.has_coordinates:
+        check_point_offsets(fe, [p.fe_node for p in placed], [p.xyz for p in placed], [repr(p.name) for p in placed],
+                            source=source)
 
 
 def shifted_point(point: Point, offset_m, name: str | None = None) -> Point:

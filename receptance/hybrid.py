@@ -31,7 +31,8 @@ from fem_import.modes import FEModes
 from receptance.dofs import Point
 from receptance.modal_model import ModalModel, ModelError
 
-__all__ = ["hybrid_model", "read_pairing_table", "DEFAULT_ZETA", "RIGID_BELOW_HZ"]
+__all__ = ["hybrid_model", "read_pairing_table", "check_pairing", "check_fe_for_model", "DEFAULT_ZETA",
+           "RIGID_BELOW_HZ", "WHEELSET_MASS_KG", "PAIRED_RATIO_MAX"]
 
 log = logging.getLogger("receptance")
 
@@ -56,15 +57,15 @@ def read_pairing_table(source) -> pd.DataFrame:
         df = source.copy()
         where = "pairing table"
     else:
+        from ema.channels import read_table_csv
+
         path = Path(source)
         if path.is_dir():
             path = path / "pairing.csv"
         if not path.is_file():
             raise ModelError(f"{path}: no pairing table there; run 'railmodal lab pair' first")
-        try:
-            df = pd.read_csv(path, dtype={"fe_modes": str, "fe_weights": str})
-        except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
-            raise ModelError(f"{path}: cannot read the pairing table: {exc}") from exc
+        df = read_table_csv(path, role="pairing table", required=_PAIRING_COLUMNS, error=ModelError,
+                            dtype={"fe_modes": str, "fe_weights": str})
         where = str(path)
     missing = [c for c in _PAIRING_COLUMNS if c not in df.columns]
     if missing:
@@ -73,7 +74,89 @@ def read_pairing_table(source) -> pd.DataFrame:
     df["fe_modes"] = df["fe_modes"].astype(object).where(df["fe_modes"].notna(), "").astype(str)
     if "fe_weights" in df:
         df["fe_weights"] = df["fe_weights"].astype(object).where(df["fe_weights"].notna(), "").astype(str)
+    for col in ("test_mode", "f_test_hz", "zeta", "f_fe_hz", "df_pct", "mac"):
+        if col in df.columns:
+            df[col] = _numeric_column(df[col], col, where)
+    df.attrs["source"] = where
     return df
+
+
+def _numeric_column(values: pd.Series, col: str, where: str) -> pd.Series:
+    """A column as float (empty cells NaN); ModelError naming the file, row and column of a non-number."""
+    out = pd.to_numeric(values, errors="coerce")
+    bad = out.isna() & values.notna() & values.astype(str).str.strip().ne("")
+    if bad.any():
+        k = int(np.flatnonzero(bad.to_numpy())[0])
+        raise ModelError(f"{where}, row {k + 1}, column {col!r}: expected a number, got {values.iloc[k]!r}")
+    return out.astype(float)
+
+
+#: A paired test mode and its FE partner differ by per cents (a hidden effect by tens of per cents);
+#: beyond a factor of two the row was edited or belongs to another export.
+PAIRED_RATIO_MAX = 2.0
+
+
+def check_pairing(table: pd.DataFrame, fe: FEModes) -> None:
+    """Check a pairing table against the FE export it is used with.
+
+    * ``fe_modes`` are modes of the export, each FE mode paired in one row
+      group only, and a group has no more test modes than members;
+    * ``f_fe_hz`` (when present) is the export's frequency of those modes
+      (the pairing was made against this file, with its mode order);
+    * ``f_test_hz`` lies within a factor :data:`PAIRED_RATIO_MAX` of it, and
+      agrees with ``df_pct`` (when present): an edited frequency is caught;
+    * ``mac`` (when present) lies in [0, 1].
+
+    Raises
+    ------
+    ModelError
+        Names the table, the row, the FE mode(s), what the table says and
+        what the FE file says.
+    """
+    where = table.attrs.get("source", "pairing table")
+    n_fe = len(fe)
+    src = fe.source or "the FE export"
+    paired = table[table["fe_modes"].str.strip().ne("") & table["test_mode"].notna()]
+    owner: dict[int, str] = {}
+    for text, rows in paired.groupby("fe_modes", sort=False):
+        first = int(rows.index[0]) + 1
+        members = _members(text, n_fe, first + 1)
+        row_list = ", ".join(str(int(i) + 1) for i in rows.index)
+        if len(rows) > len(members):
+            raise ModelError(
+                f"{where}, rows {row_list}: FE mode(s) {text} paired with {len(rows)} test modes "
+                f"({', '.join(f'{t:g}' for t in rows['test_mode'])}) but the group has {len(members)} member(s); "
+                f"an FE mode has one test partner (a degenerate pair two)")
+        for j in members:
+            if j in owner and owner[j] != text:
+                raise ModelError(f"{where}, row {first}: FE mode {j + 1} is paired twice (in '{owner[j]}' and "
+                                 f"'{text}')")
+            owner[j] = text
+        f_fe = float(np.mean(fe.freqs_hz[members]))
+        for i, r in rows.iterrows():
+            row = int(i) + 1
+            ft = float(r["f_test_hz"])
+            if "f_fe_hz" in rows and np.isfinite(r["f_fe_hz"]):
+                if abs(float(r["f_fe_hz"]) - f_fe) > 1e-4 * max(f_fe, 1.0):
+                    raise ModelError(
+                        f"{where}, row {row}: f_fe_hz {float(r['f_fe_hz']):.6g} Hz for FE mode(s) {text}, but "
+                        f"{src} has {f_fe:.6g} Hz for them: the pairing was made against another FE export, or "
+                        f"its modes are in another order; pair again against this file")
+            if np.isfinite(ft) and ft > 0 and f_fe > 0 and not 1 / PAIRED_RATIO_MAX <= ft / f_fe <= PAIRED_RATIO_MAX:
+                raise ModelError(
+                    f"{where}, row {row}: test mode {r['test_mode']:g} at {ft:.6g} Hz is paired with FE mode(s) "
+                    f"{text} at {f_fe:.6g} Hz, {ft / f_fe:.3g} x apart; paired modes differ by per cents (at most a "
+                    f"factor {PAIRED_RATIO_MAX:g}): the row was edited or belongs to another pairing")
+            if "df_pct" in rows and np.isfinite(r["df_pct"]) and np.isfinite(ft) and ft > 0:
+                f_ref = float(r["f_fe_hz"]) if "f_fe_hz" in rows and np.isfinite(r["f_fe_hz"]) else f_fe
+                df_pct = 100 * (f_ref - ft) / ft
+                if abs(df_pct - float(r["df_pct"])) > 0.01 + 1e-3 * abs(df_pct):
+                    raise ModelError(
+                        f"{where}, row {row}: df_pct says {float(r['df_pct']):.4g} % but f_test_hz {ft:.6g} Hz and "
+                        f"f_fe_hz {f_ref:.6g} Hz give {df_pct:.4g} %: a frequency was edited after pairing")
+            if "mac" in rows and pd.notna(r["mac"]) and not -1e-6 <= float(r["mac"]) <= 1 + 1e-6:
+                raise ModelError(f"{where}, row {row}: mac {float(r['mac']):g} for FE mode(s) {text} is outside "
+                                 f"[0, 1]")
 
 
 def _members(text: str, n_fe: int, row: int) -> list[int]:
@@ -113,6 +196,53 @@ def _rotate_cluster(shapes: np.ndarray, rows: pd.DataFrame, text: str) -> np.nda
         if np.linalg.norm(u) > 1e-6 and len(basis) < n:
             basis.append(u / np.linalg.norm(u))
     return np.tensordot(np.array(basis), shapes, axes=1)
+
+
+#: Railway wheelset mass [kg]: outside the physical range (a tram wheel to a heavy-haul wheelset with axleboxes,
+#: widened by a factor two) the FE shapes' normalisation is wrong; outside the typical range a warning.
+WHEELSET_MASS_KG = {"physical": (100.0, 10000.0), "typical": (500.0, 2500.0)}
+
+
+def check_fe_for_model(fe: FEModes, *, total_mass: float | None = None, mass_matrix=None,
+                       expect: str = "wheelset"):
+    """Mass normalisation of an FE export before it becomes a hybrid model.
+
+    The rigid-body modes give the total mass (:func:`fem_import.check_mass_normalisation`):
+    it must be the same along x, y and z, equal ``total_mass`` when given
+    (5 %), and — for ``expect="wheelset"`` without ``total_mass`` — lie in
+    the physical range of a railway wheelset (:data:`WHEELSET_MASS_KG`; a
+    warning outside the typical range). Shapes scaled by ``s`` show a mass
+    ``1/s^2`` times too small.
+
+    Returns
+    -------
+    fem_import.RigidBodyMass or None
+
+    Raises
+    ------
+    fem_import.MassNormalisationError
+        Names the file, the mass found and what was expected.
+    """
+    import warnings
+
+    from fem_import.checks import MassNormalisationError, check_mass_normalisation
+
+    rb = check_mass_normalisation(fe, total_mass=total_mass, mass_matrix=mass_matrix)
+    if rb is None or total_mass is not None or expect != "wheelset":
+        return rb
+    lo, hi = WHEELSET_MASS_KG["physical"]
+    tlo, thi = WHEELSET_MASS_KG["typical"]
+    src = fe.source or "FE modes"
+    if not lo <= rb.mass <= hi:
+        raise MassNormalisationError(
+            f"{src}: the rigid-body modes imply a wheelset mass of {rb.mass:.4g} kg, outside the physical range "
+            f"{lo:g}–{hi:g} kg of a railway wheelset: the shapes are not mass-normalised (scaled by about "
+            f"{np.sqrt(np.sqrt(tlo * thi) / rb.mass):.3g}?) or not in SI units; give the true mass to check against "
+            f"(total_mass= / --total-mass)")
+    if not tlo <= rb.mass <= thi:
+        warnings.warn(f"{src}: the rigid-body modes imply a wheelset mass of {rb.mass:.4g} kg, outside the typical "
+                      f"{tlo:g}–{thi:g} kg; check the FE export's normalisation and units", UserWarning, stacklevel=2)
+    return rb
 
 
 def hybrid_model(
@@ -158,6 +288,7 @@ def hybrid_model(
     ModalModel
     """
     table = read_pairing_table(pairing)
+    check_pairing(table, fe)
     n_fe = len(fe)
     if not 0 <= default_zeta < 1:
         raise ModelError(f"default_zeta must lie in [0, 1), got {default_zeta!r}")

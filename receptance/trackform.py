@@ -11,7 +11,9 @@ A TOML (``.toml``) or JSON (``.json``) file whose keys are exactly the
 field names of :class:`Trackform`, all in SI units, either at the top level
 or inside a ``[trackform]`` table / ``{"trackform": {...}}`` object.  Every
 field must be present (no silent defaults from a file), no unknown key is
-accepted, and every value must be a finite number > 0::
+accepted, and every value must be a finite number > 0 inside its physical range
+(:data:`PLAUSIBLE`, :func:`check_trackform`: refused outside it, a warning
+outside the typical range; a UTF-8 byte-order mark is accepted)::
 
     [trackform]
     rail_mass = 49.9              # kg/m
@@ -31,7 +33,11 @@ import tomllib
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 
-__all__ = ["Trackform", "TrackformError", "load_trackform", "trackform_to_dict"]
+__all__ = ["Trackform", "TrackformError", "TrackformWarning", "load_trackform", "trackform_to_dict", "check_trackform",
+           "PLAUSIBLE"]
+
+#: Largest trackform file read (a trackform is ~21 numbers).
+MAX_FILE_BYTES = 1_000_000
 
 
 class TrackformError(ValueError):
@@ -110,9 +116,106 @@ class Trackform:
 def _check_value(key: str, value, source: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise TrackformError(f"{source}: trackform key {key!r} must be a number, got {value!r}")
-    if not math.isfinite(value) or value <= 0:
+    try:
+        v = float(value)
+    except OverflowError:
+        digits = len(str(abs(value))) if isinstance(value, int) else 0
+        raise TrackformError(f"{source}: trackform key {key!r} must be finite and > 0, got an integer of {digits} "
+                             f"digits (too large for a float)") from None
+    if not math.isfinite(v) or v <= 0:
         raise TrackformError(f"{source}: trackform key {key!r} must be finite and > 0, got {value!r}")
-    return float(value)
+    return v
+
+
+#: Plausible values of each parameter (SI): outside ``physical`` a trackform is refused, outside ``typical``
+#: (the ballasted and slab tracks of the literature: rails 30–80 kg/m, pads 20 MN/m–1.5 GN/m, sleeper spacing
+#: 0.5–0.8 m, ...) a warning is given. (low, high, unit); ``None`` bounds are open (exclusive).
+PLAUSIBLE: dict[str, dict[str, tuple]] = {
+    "rail_mass": {"physical": (5.0, 500.0), "typical": (25.0, 80.0), "unit": "kg/m"},
+    "rail_density": {"physical": (1000.0, 25000.0), "typical": (7000.0, 8100.0), "unit": "kg/m^3"},
+    "rail_area": {"physical": (5e-4, 5e-2), "typical": (3e-3, 1.1e-2), "unit": "m^2"},
+    "rail_I_yy": {"physical": (1e-8, 1e-3), "typical": (5e-6, 6e-5), "unit": "m^4"},
+    "rail_I_zz": {"physical": (1e-9, 1e-3), "typical": (1e-6, 1.5e-5), "unit": "m^4"},
+    "youngs_modulus": {"physical": (1e9, 1e12), "typical": (1.9e11, 2.2e11), "unit": "Pa"},
+    "poisson_ratio": {"physical": (0.0, 0.5), "typical": (0.25, 0.33), "unit": "", "open": True},
+    "shear_factor": {"physical": (0.0, 1.0), "typical": (0.3, 0.6), "unit": ""},
+    "rail_loss_factor": {"physical": (0.0, 1.0), "typical": (1e-3, 0.05), "unit": ""},
+    "support_spacing": {"physical": (0.1, 5.0), "typical": (0.5, 0.8), "unit": "m"},
+    "pad_stiffness_z": {"physical": (1e5, 1e11), "typical": (2e7, 1.5e9), "unit": "N/m"},
+    "pad_stiffness_y": {"physical": (1e5, 1e11), "typical": (1e7, 1e9), "unit": "N/m"},
+    "pad_damping_z": {"physical": (1.0, 1e7), "typical": (1e2, 1e5), "unit": "N s/m"},
+    "pad_damping_y": {"physical": (1.0, 1e7), "typical": (1e2, 1e5), "unit": "N s/m"},
+    "pad_loss_factor": {"physical": (0.0, 1.0), "typical": (0.05, 0.5), "unit": ""},
+    "baseplate_mass": {"physical": (0.01, 2000.0), "typical": (1.0, 350.0), "unit": "kg"},
+    "subplate_stiffness_z": {"physical": (1e5, 1e11), "typical": (5e6, 1e9), "unit": "N/m"},
+    "subplate_stiffness_y": {"physical": (1e5, 1e11), "typical": (2e6, 1e9), "unit": "N/m"},
+    "subplate_damping_z": {"physical": (1.0, 1e7), "typical": (1e2, 1e5), "unit": "N s/m"},
+    "subplate_damping_y": {"physical": (1.0, 1e7), "typical": (1e2, 1e5), "unit": "N s/m"},
+    "subplate_loss_factor": {"physical": (0.0, 1.0), "typical": (0.05, 0.5), "unit": ""},
+}
+
+
+class TrackformWarning(UserWarning):
+    """A trackform parameter outside its typical (but possible) range."""
+
+
+def check_trackform(trackform: "Trackform", source: str = "<Trackform>") -> "Trackform":
+    """Plausibility of every parameter: refuse values outside their physical range, warn outside the typical one.
+
+    Besides the ranges of :data:`PLAUSIBLE` the rail's mass per metre must
+    match ``rail_density * rail_area`` (within a factor 2; a warning beyond
+    10 %): a slipped unit (cm^2 for m^2) shows there.
+
+    Parameters
+    ----------
+    trackform : Trackform
+    source : str
+        The file (or description) quoted in messages.
+
+    Returns
+    -------
+    Trackform
+        The same object.
+
+    Raises
+    ------
+    TrackformError
+        Names the source, the parameter, its value, its unit and the physical range.
+
+    Warns
+    -----
+    TrackformWarning
+        A parameter outside its typical range (named with the range).
+    """
+    import warnings
+
+    for name, spec in PLAUSIBLE.items():
+        v = getattr(trackform, name)
+        lo, hi = spec["physical"]
+        unit = spec["unit"]
+        lo_open = lo == 0.0 or spec.get("open", False)  # a zero stiffness, mass or loss factor is no parameter
+        hi_open = spec.get("open", False)
+        inside = (lo < v if lo_open else lo <= v) and (v < hi if hi_open else v <= hi)
+        if not inside:
+            rng = f"{'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}" + (f" {unit}" if unit else "")
+            raise TrackformError(f"{source}: trackform key {name!r} = {v:g}{' ' + unit if unit else ''} is outside "
+                                 f"the physical range {rng}; check the value and its unit (SI)")
+        tlo, thi = spec["typical"]
+        if not tlo <= v <= thi:
+            warnings.warn(f"{source}: trackform key {name!r} = {v:g}{' ' + unit if unit else ''} is outside the "
+                          f"typical range [{tlo:g}, {thi:g}]{' ' + unit if unit else ''}; it is used as given",
+                          TrackformWarning, stacklevel=2)
+    m = trackform.rail_density * trackform.rail_area
+    ratio = trackform.rail_mass / m
+    if not 0.5 <= ratio <= 2.0:
+        raise TrackformError(
+            f"{source}: rail_mass {trackform.rail_mass:g} kg/m disagrees with rail_density x rail_area = "
+            f"{trackform.rail_density:g} x {trackform.rail_area:g} = {m:.4g} kg/m (ratio {ratio:.3g}, allowed "
+            f"0.5–2); a unit slipped (cm^2 for m^2?)")
+    if not 0.9 <= ratio <= 1.1:
+        warnings.warn(f"{source}: rail_mass {trackform.rail_mass:g} kg/m is {ratio:.3g} x rail_density x rail_area "
+                      f"({m:.4g} kg/m)", TrackformWarning, stacklevel=2)
+    return trackform
 
 
 def trackform_to_dict(trackform: Trackform) -> dict[str, float]:
@@ -136,8 +239,14 @@ def load_trackform(path: str | Path) -> Trackform:
     Raises
     ------
     TrackformError
-        Unsupported extension, unparsable file, unknown or missing keys, or a
-        non-numeric / non-positive value — the message names the file and key.
+        Unsupported extension, unparsable or too deeply nested file, unknown
+        or missing keys, a non-numeric / non-positive value, or one outside its
+        physical range — the message names the file, the key and the range.
+
+    Warns
+    -----
+    TrackformWarning
+        A value outside its typical range.
     """
     path = Path(path)
     suffix = path.suffix.lower()
@@ -145,16 +254,24 @@ def load_trackform(path: str | Path) -> Trackform:
         text = path.read_bytes()
     except OSError as exc:
         raise TrackformError(f"{path}: cannot read trackform file ({exc})") from exc
+    if suffix not in (".toml", ".json"):
+        raise TrackformError(f"{path}: unsupported trackform file extension {suffix!r}; "
+                             "supported: '.toml', '.json'")
+    if len(text) > MAX_FILE_BYTES:
+        raise TrackformError(f"{path}: {len(text)} bytes; a trackform file has a few dozen keys (at most "
+                             f"{MAX_FILE_BYTES} bytes)")
     try:
-        if suffix == ".toml":
-            raw = tomllib.loads(text.decode("utf-8"))
-        elif suffix == ".json":
-            raw = json.loads(text.decode("utf-8"))
-        else:
-            raise TrackformError(f"{path}: unsupported trackform file extension {suffix!r}; "
-                                 "supported: '.toml', '.json'")
-    except (tomllib.TOMLDecodeError, json.JSONDecodeError, UnicodeDecodeError) as exc:
+        # a UTF-8 byte-order mark (Windows editors write one) is not part of the content
+        decoded = text.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise TrackformError(f"{path}: not UTF-8 text (byte {exc.start}); save the trackform as UTF-8") from None
+    try:
+        raw = tomllib.loads(decoded) if suffix == ".toml" else json.loads(decoded)
+    except ValueError as exc:  # TOMLDecodeError, JSONDecodeError, an integer beyond Python's digit limit
         raise TrackformError(f"{path}: cannot parse trackform file ({exc})") from exc
+    except RecursionError:
+        raise TrackformError(f"{path}: cannot parse trackform file: it is nested too deeply (a trackform is one "
+                             f"flat table of numbers)") from None
     if not isinstance(raw, dict):
         raise TrackformError(f"{path}: expected a table/object of trackform keys, got {type(raw).__name__}")
     if set(raw) == {"trackform"} and isinstance(raw["trackform"], dict):
@@ -167,4 +284,4 @@ def load_trackform(path: str | Path) -> Trackform:
     if missing:
         raise TrackformError(f"{path}: missing trackform key(s) {missing}")
     values = {n: _check_value(n, raw[n], str(path)) for n in names}
-    return Trackform(**values)
+    return check_trackform(Trackform(**values), str(path))
