@@ -1,0 +1,601 @@
+"""Axlebox accelerations → irregularity at each wheel, through receptance's transfer functions (thesis §2.2).
+
+**Transfer functions.** For each wheelset and each model (half wheelset,
+full vertical, full vertical + lateral; thesis eqs. 2.6, 2.11, 2.22) the
+dynamic compliance ``D = Nᵀ(A_W + A_R)N + diag(1/K_H)`` and the force-to-
+acceleration matrix ``B = −Ω² A_B N`` come from :mod:`receptance.transfer`
+with the run's *sensors* as the measured DOFs: each accelerometer is a point
+rigidly attached to its axlebox node at its mounting point from the sensor
+table (:func:`sensor_model`), so an accelerometer off the axlebox centre is
+modelled where it is (thesis §4.3.5).
+
+**Regularisation (Tikhonov).** ``T = D B⁺_α`` with, per frequency,
+``B = U S Vᴴ`` and ``B⁺_α = V diag(s_k / (s_k² + α² s_ref²)) Uᴴ``. The
+reference ``s_ref`` is the largest singular value of ``B`` smoothed over one
+third of an octave (RMS over ±1/6 octave): a direction of ``B`` weaker than
+``α`` times its neighbourhood's strength is damped — a nearly dependent pair
+of channels (``s_min ≪ s_max``) as well as a narrow antiresonance of the
+contact-to-axlebox receptance where every singular value dips (the
+half-wheelset model's only failure mode, which a per-frequency reference
+would never see). ``α`` is the relative uncertainty of the data: the
+accelerometers' calibration (±2 %) and mounting make the measured
+accelerations uncertain at the per-cent level, so directions below
+``α = 0.02`` of ``s_ref`` carry no information (discrepancy principle).
+The condition number ``s_max/s_min`` and the smallest filter factor
+``s_k²/(s_k² + α² s_ref²)`` are reported per frequency and per band.
+
+**Band.** The inversion is band-limited to ``[f_lo, f_hi]`` — below ``f_lo``
+the bogie and carbody (not in the model) move the axlebox, above ``f_hi``
+the DAQ's anti-aliasing filter — with raised-cosine tapers a third of an
+octave below ``f_lo`` and a sixth above ``f_hi``.
+
+**Speed varying along the run.** The wheelset–track system is
+time-invariant (the model has no speed in it), so the irregularity *as a
+function of time* at each wheel is ``n(t) = T * a(t)``, whatever the speed:
+the inversion is one frequency-domain deconvolution of each valid stretch
+of the run; speed enters only when ``n(t)`` is mapped to chainage. This is
+the wavenumber form ``f = v/λ`` applied exactly: a wavelength ``λ`` passing
+at speed ``v(x)`` is inverted with ``T(v(x)/λ)``. Valid stretches are the
+runs of samples no quality-control finding masks; each is inverted on its
+own (nothing is interpolated over a gap) and ``edge_s`` at both ends — the
+duration holding 99.9 % of the inverse filter's impulse-response energy —
+is dropped (at most 1 s: the longest tails, from lightly damped
+antiresonances, hold less than 0.1 % of the energy beyond it).
+
+**Contact angles along the run** (vertical + lateral model): ``T`` depends on
+``θ_L, θ_R``. The run is inverted with the tangent-track angles and with each
+curve's body angles, and the outputs are blended with the curve's ramp
+(linear along the transitions): the angles change over tens of metres, the
+inverse filter's memory is a fraction of a second.
+
+**Time → chainage.** The inverted signals are upsampled ×4 in the frequency
+domain (exact for band-limited signals) and read at the times the wheel
+passes each point of the spatial grid with 4-point cubic (Lagrange)
+interpolation: at ≤ 0.1 of the upsampled rate this keeps the amplitude to
+< 0.01 dB.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+import pandas as pd
+from scipy import fft as sfft
+
+from ema.frf import FrequencyResponse
+from estimator.errors import ChannelError, ConfigurationError
+from receptance.dofs import Point
+from receptance.transfer import full_vertical_transfer, half_wheelset_transfer, vertical_lateral_transfer
+
+__all__ = ["WheelsetTransfer", "sensor_model", "model_channels", "regularised_inverse", "band_window",
+           "wheelset_transfer", "TimeIrregularity", "invert", "cubic_sample", "sample_many", "UPSAMPLE",
+           "condition_by_band", "rail_coupling"]
+
+log = logging.getLogger("estimator")
+
+#: upsampling of the inverted signals before they are read at the grid's times
+UPSAMPLE = 4
+#: share of the inverse filter's impulse-response energy inside the edge dropped at each end of a stretch
+EDGE_ENERGY = 0.999
+#: bounds of that edge [s] (lightly damped antiresonances give long tails; beyond 1 s they hold < 0.1 %)
+EDGE_BOUNDS_S = (0.05, 1.0)
+_AXIS = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
+
+
+def sensor_model(model, channels: pd.DataFrame):
+    """The model with one point per accelerometer of ``channels`` and the DOF label of each channel.
+
+    Each sensor is a point attached to the FE node of its side's axlebox
+    point (``axlebox_L``/``axlebox_R`` of the model), at the wheelset centre
+    (midpoint of the two axlebox points) plus the sensor table's mounting
+    offset ``(x, y, z)``, vehicle frame = model frame (x forward, left wheel at
+    −y, z up: DESIGN.md).
+
+    Returns
+    -------
+    model, labels : ModalModel, list of str
+        ``labels[i]`` is ``"<channel name>:<direction>"``.
+    """
+    pts = getattr(model, "points", {})
+    missing = [p for p in ("axlebox_L", "axlebox_R", "contact_L", "contact_R") if p not in pts]
+    if missing:
+        raise ChannelError(f"the wheelset model lacks point(s) {missing}; a field estimate needs the contact points and "
+                           f"axleboxes (points.csv of the lab: contact_L, axlebox_L, contact_R, axlebox_R); it has "
+                           f"{sorted(pts)}")
+    axl, axr = pts["axlebox_L"], pts["axlebox_R"]
+    if axl.xyz is None or axr.xyz is None:
+        raise ChannelError("the model's axlebox points need coordinates (x, y, z) to place the accelerometers")
+    if axl.xyz[1] >= axr.xyz[1]:
+        raise ChannelError(f"the model's axlebox_L (y = {axl.xyz[1]:g} m) is not on the -y side of axlebox_R "
+                           f"(y = {axr.xyz[1]:g} m); the toolkit's frame has the left wheel at -y (DESIGN.md)")
+    centre = 0.5 * (np.asarray(axl.xyz) + np.asarray(axr.xyz))
+    new, labels = [], []
+    for _, r in channels.iterrows():
+        host = axl if r["side"] == "L" else axr
+        xyz = centre + np.array([r["x"], r["y"], r["z"]], float)
+        new.append(Point(str(r["name"]), host.fe_node, tuple(xyz)))
+        labels.append(f"{r['name']}:{r['direction']}")
+    return model.with_points(new), labels
+
+
+def model_channels(kind: str, channels: pd.DataFrame) -> tuple[list[int], tuple[str, ...]]:
+    """Rows of ``channels`` (one wheelset's sensors) a model uses, and the vehicle sides it estimates.
+
+    half: the vertical channel of each side present (one SISO model per side);
+    vertical: both vertical channels; vertical_lateral: both vertical and every
+    lateral channel.
+    """
+    vert = {s: channels.index[(channels["direction"] == "z") & (channels["side"] == s)].tolist() for s in "LR"}
+    lat = channels.index[channels["direction"] == "y"].tolist()
+    for s in "LR":
+        if len(vert[s]) > 1:
+            raise ChannelError(f"wheelset {channels['wheelset'].iloc[0]}: {len(vert[s])} vertical channels on side {s} "
+                               f"({list(channels.loc[vert[s], 'name'])}); the models use one per axlebox")
+    if kind == "half":
+        rows = [vert[s][0] for s in "LR" if vert[s]]
+        sides = tuple(s for s in "LR" if vert[s])
+        if not rows:
+            raise ChannelError("the half model needs a vertical axlebox channel")
+        return rows, sides
+    if not (vert["L"] and vert["R"]):
+        raise ChannelError(f"the {kind!r} model needs both vertical axlebox channels (L and R)")
+    rows = [vert["L"][0], vert["R"][0]]
+    if kind == "vertical_lateral":
+        if not lat:
+            raise ChannelError("the vertical_lateral model needs a lateral (y) channel")
+        rows += lat
+    return rows, ("L", "R")
+
+
+def _log_smooth_rms(f: np.ndarray, v: np.ndarray, half_octaves: float = 1 / 6) -> np.ndarray:
+    """RMS of ``v`` over ``[f 2^-h, f 2^h]`` on an evenly spaced axis ``f`` (cumulative sums)."""
+    c = np.concatenate([[0.0], np.cumsum(v * v)])
+    lo = np.searchsorted(f, f * 2.0**-half_octaves, side="left")
+    hi = np.searchsorted(f, f * 2.0**half_octaves, side="right")
+    n = np.maximum(hi - lo, 1)
+    return np.sqrt((c[hi] - c[lo]) / n)
+
+
+def regularised_inverse(D: np.ndarray, B: np.ndarray, f: np.ndarray, alpha: float, *, with_inverse: bool = False
+                        ) -> tuple[np.ndarray, ...]:
+    """``T = D B⁺_α`` with the Tikhonov reference smoothed over a third of an octave (module docstring).
+
+    Parameters
+    ----------
+    D : ndarray (n_f, k, k)
+    B : ndarray (n_f, m, k)
+    f : ndarray (n_f,) evenly spaced [Hz]
+    alpha : float
+
+    Returns
+    -------
+    T : ndarray (n_f, k, m)
+    condition : ndarray (n_f,)
+        ``s_max/s_min`` of ``B``.
+    filter_min : ndarray (n_f,)
+        Smallest Tikhonov filter factor (1 = untouched).
+    pinv : ndarray (n_f, k, m)
+        Only with ``with_inverse``: ``B⁺_α``, the contact forces per unit acceleration.
+    """
+    k = B.shape[2]
+    Bh = np.conj(np.swapaxes(B, 1, 2))
+    G = Bh @ B  # (n_f, k, k) Hermitian; its eigenvalues are the squared singular values of B
+    if k == 1:
+        ev = G[:, :, 0].real
+    elif k == 2:
+        a, d, b = G[:, 0, 0].real, G[:, 1, 1].real, G[:, 0, 1]
+        half_tr = 0.5 * (a + d)
+        disc = np.sqrt(np.maximum(0.25 * (a - d) ** 2 + np.abs(b) ** 2, 0.0))
+        ev = np.stack([half_tr + disc, np.maximum(half_tr - disc, 0.0)], axis=1)
+    else:
+        ev = np.linalg.eigvalsh(G)[:, ::-1]
+    s_max = np.sqrt(np.maximum(ev[:, 0], 0.0))
+    s_ref = _log_smooth_rms(f, s_max)
+    lam2 = (alpha * s_ref) ** 2
+    # Tikhonov in closed form: B⁺_α = (BᴴB + λ² I)⁻¹ Bᴴ (the SVD filter of the docstring, without an SVD)
+    A = G + lam2[:, None, None] * np.eye(k)[None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        if k == 1:
+            pinv = Bh / A
+        elif k == 2:
+            det = A[:, 0, 0] * A[:, 1, 1] - A[:, 0, 1] * A[:, 1, 0]
+            inv = np.empty_like(A)
+            inv[:, 0, 0], inv[:, 1, 1] = A[:, 1, 1] / det, A[:, 0, 0] / det
+            inv[:, 0, 1], inv[:, 1, 0] = -A[:, 0, 1] / det, -A[:, 1, 0] / det
+            pinv = inv @ Bh
+        else:
+            pinv = np.linalg.solve(A, Bh)
+        ev_min = np.maximum(ev[:, -1], 0.0)
+        cond = np.sqrt(ev[:, 0] / ev_min)
+        factor = ev_min / (ev_min + lam2)
+    pinv = np.where(np.isfinite(pinv), pinv, 0.0)
+    if with_inverse:
+        return D @ pinv, cond, np.nan_to_num(factor, nan=0.0), pinv
+    return D @ pinv, cond, np.nan_to_num(factor, nan=0.0)
+
+
+def band_window(f: np.ndarray, f_lo: float, f_hi: float, f_nyq: float) -> np.ndarray:
+    """1 on ``[f_lo, f_hi]``, raised-cosine tapers over a third of an octave below and a sixth above."""
+    w = np.zeros_like(f, dtype=float)
+    a = f_lo * 2.0 ** (-1 / 3)
+    b = min(f_hi * 2.0 ** (1 / 6), f_nyq)
+    w[(f >= f_lo) & (f <= f_hi)] = 1.0
+    lo = (f > a) & (f < f_lo)
+    w[lo] = 0.5 - 0.5 * np.cos(np.pi * (f[lo] - a) / (f_lo - a))
+    if b > f_hi:
+        hi = (f > f_hi) & (f < b)
+        w[hi] = 0.5 + 0.5 * np.cos(np.pi * (f[hi] - f_hi) / (b - f_hi))
+    return w
+
+
+@dataclass(frozen=True, eq=False)
+class WheelsetTransfer:
+    """One wheelset's regularised, band-limited transfer function for one model and one pair of angles.
+
+    ``T`` (n_f, n_sides, n_channels) maps the acceleration spectra of
+    ``channels`` (run channel names) to the irregularity at the wheels of
+    ``sides`` (vehicle sides). For the half model ``T`` is diagonal (one SISO
+    model per side).
+    """
+
+    kind: str
+    wheelset: int
+    channels: tuple[str, ...]
+    sides: tuple[str, ...]
+    freqs_hz: np.ndarray
+    T: np.ndarray
+    condition: np.ndarray
+    filter_min: np.ndarray
+    theta: tuple[float, float]
+    band_hz: tuple[float, float]
+    edge_s: float
+    alpha: float
+    history: tuple[str, ...] = field(default_factory=tuple)
+    #: ``B⁺_α`` band-limited (n_f, n_sides, n_channels): contact forces along the contact normals per unit
+    #: acceleration, for the rail coupling of the two wheelsets (:func:`rail_coupling`)
+    P: np.ndarray | None = None
+
+    def as_frequency_response(self) -> FrequencyResponse:
+        """``T`` as the toolkit's frequency-response type (quantity ``transfer``)."""
+        f = self.freqs_hz
+        keep = f > 0
+        return FrequencyResponse(freqs_hz=f[keep], data=np.moveaxis(self.T[keep], 0, 2),
+                                 outputs=tuple(f"irr_{s}" for s in self.sides), inputs=self.channels,
+                                 quantity="transfer", units="m/(m/s^2)", history=self.history)
+
+
+def _edge_seconds(T: np.ndarray, df: float, fs_grid: float) -> float:
+    """Half-width [s] holding 99.9 % of the energy of the impulse responses of ``T`` (both time directions)."""
+    h = sfft.irfft(T.reshape(T.shape[0], -1), axis=0)
+    e = (np.abs(h) ** 2).sum(axis=1)
+    n = e.size
+    lag = np.minimum(np.arange(n), n - np.arange(n)) / fs_grid
+    order = np.argsort(lag, kind="stable")
+    cum = np.cumsum(e[order])
+    if cum[-1] <= 0:
+        return 0.05
+    k = int(np.searchsorted(cum, EDGE_ENERGY * cum[-1]))
+    return float(lag[order][min(k, n - 1)])
+
+
+def wheelset_transfer(model, channels: pd.DataFrame, kind: str, fs: float, *, f_lo: float, f_hi: float,
+                      alpha: float, df: float, track, contact_stiffness, theta: tuple[float, float] = (0.0, 0.0),
+                      ) -> WheelsetTransfer:
+    """The regularised transfer function of one wheelset's sensors for one model (module docstring).
+
+    Parameters
+    ----------
+    model : ModalModel
+        Hybrid wheelset model with points ``contact_L/R`` and ``axlebox_L/R``.
+    channels : pandas.DataFrame
+        The wheelset's sensor rows (``Run.wheelset_channels``).
+    kind : {"half", "vertical", "vertical_lateral"}
+    fs : float
+        Sampling rate of the accelerations [Hz]; the function is evaluated up to ``fs/2``.
+    f_lo, f_hi : float
+        Inversion band [Hz].
+    alpha : float
+        Tikhonov parameter.
+    df : float
+        Frequency step [Hz] of the evaluation grid.
+    track : FrequencyResponse or Trackform
+        Rail receptance (``track_frf``) on the grid, or a trackform.
+    contact_stiffness : float
+        Linearised Hertz stiffness ``K_H`` [N/m].
+    theta : (float, float)
+        Contact-plane angles (θ_L, θ_R) [rad] for ``vertical_lateral``.
+    """
+    rows, sides = model_channels(kind, channels)
+    sub = channels.loc[rows].reset_index(drop=True)
+    m_w, labels = sensor_model(model, sub)
+    n_f = int(np.floor(0.5 * fs / df))
+    f = df * np.arange(1, n_f + 1)
+    trk = track
+    if isinstance(track, FrequencyResponse) and (track.freqs_hz.size != f.size
+                                                 or not np.allclose(track.freqs_hz, f)):
+        raise ConfigurationError("the track receptance must be evaluated on the transfer grid (df·1..fs/2)")
+    if kind == "half":
+        T = np.zeros((n_f, len(sides), len(sides)), complex)
+        P = np.zeros_like(T)
+        cond = np.ones(n_f)
+        fmin = np.ones(n_f)
+        for i, (s, lab) in enumerate(zip(sides, labels)):
+            mt = half_wheelset_transfer(m_w, f, side=s, channel=lab, track=trk, contact_stiffness=contact_stiffness)
+            D = np.moveaxis(mt.dynamic_compliance.data, 2, 0)
+            B = np.moveaxis(mt.force_to_acceleration.data, 2, 0)
+            Ti, _, fm, Pi = regularised_inverse(D, B, f, alpha, with_inverse=True)
+            T[:, i, i] = Ti[:, 0, 0]
+            P[:, i, i] = Pi[:, 0, 0]
+            fmin = np.minimum(fmin, fm)
+    else:
+        if kind == "vertical":
+            mt = full_vertical_transfer(m_w, f, channels=labels, track=trk, contact_stiffness=contact_stiffness)
+        elif kind == "vertical_lateral":
+            mt = vertical_lateral_transfer(m_w, f, theta_l=float(theta[0]), theta_r=float(theta[1]), channels=labels,
+                                           track=trk, contact_stiffness=contact_stiffness)
+        else:
+            raise ConfigurationError(f"unknown model {kind!r}; choose half, vertical or vertical_lateral")
+        D = np.moveaxis(mt.dynamic_compliance.data, 2, 0)
+        B = np.moveaxis(mt.force_to_acceleration.data, 2, 0)
+        T, cond, fmin, P = regularised_inverse(D, B, f, alpha, with_inverse=True)
+    w = band_window(f, f_lo, f_hi, 0.5 * fs)
+    T = T * w[:, None, None]
+    P = P * w[:, None, None]
+    # grid with the 0 Hz line (T = 0 there) so that the impulse response and interpolation see the whole axis
+    f0 = np.concatenate([[0.0], f])
+    T0 = np.concatenate([np.zeros((1,) + T.shape[1:], complex), T])
+    P0 = np.concatenate([np.zeros((1,) + P.shape[1:], complex), P])
+    edge = float(np.clip(_edge_seconds(T0, df, 2 * f0[-1]), *EDGE_BOUNDS_S))
+    names = tuple(str(n) for n in sub["name"])
+    hist = (f"{kind} transfer function (thesis eq. {dict(half='2.6', vertical='2.11', vertical_lateral='2.22')[kind]})"
+            f" of wheelset {int(channels['wheelset'].iloc[0])}, channels {list(names)}, theta "
+            f"({math.degrees(theta[0]):.2f}, {math.degrees(theta[1]):.2f}) deg, Tikhonov alpha {alpha:g} (1/3-octave "
+            f"reference), band {f_lo:g}-{f_hi:g} Hz, edge {edge:.2f} s",)
+    return WheelsetTransfer(kind=kind, wheelset=int(channels["wheelset"].iloc[0]), channels=names, sides=sides,
+                            freqs_hz=f0, T=T0, condition=np.concatenate([[np.nan], cond]),
+                            filter_min=np.concatenate([[0.0], fmin]), theta=(float(theta[0]), float(theta[1])),
+                            band_hz=(float(f_lo), float(f_hi)), edge_s=edge, alpha=float(alpha), history=hist, P=P0)
+
+
+def rail_coupling(freqs_hz: np.ndarray, trackform, distance_m: float, sides_self: Sequence[str],
+                  sides_other: Sequence[str], theta_self=(0.0, 0.0), theta_other=(0.0, 0.0)) -> np.ndarray:
+    """Rail displacement along the contact normals of one wheelset per unit normal force of the other.
+
+    Each rail carries both wheelsets of the bogie ``distance_m`` (the wheelbase) apart. Above the
+    rail-on-pad resonance the rail's bending waves travel far (the cross receptance at 2.1 m is 45–65 %
+    of the point receptance from 140 to 300 Hz on the thesis's Table 2.2 track), so the rail under one
+    wheel also moves with the other wheelset's force: the irregularity at wheel ``s`` is
+    ``n_s = (T a)_s + C_ss F'_s`` with ``F' = B'⁺ a'`` the other wheelset's contact forces and
+    ``C_ss = cos θ_s cos θ'_s α_z(d) + sin θ_s sin θ'_s α_y(d)`` (the contact normals
+    ``(−sin θ, cos θ)`` of thesis eq. 2.12, ``α(d)`` the infinite Timoshenko rail's transfer receptance at
+    distance ``d``, thesis §2.4 / :func:`receptance.track.green_function`).
+
+    Returns
+    -------
+    ndarray complex (n_f, len(sides_self), len(sides_other)), zero at 0 Hz and between different rails.
+    """
+    from receptance.track import beam_section, green_function, support_stiffness_per_metre
+
+    f = np.asarray(freqs_hz, float)
+    out = np.zeros((f.size, len(sides_self), len(sides_other)), complex)
+    pos = f > 0
+    alpha = {}
+    for direction in ("vertical", "lateral"):
+        a = np.zeros(f.size, complex)
+        a[pos] = green_function(f[pos], distance_m, beam_section(trackform, direction),
+                                support_stiffness_per_metre(f[pos], trackform, direction))
+        alpha[direction] = a
+    th_s = dict(zip("LR", theta_self))
+    th_o = dict(zip("LR", theta_other))
+    for i, s in enumerate(sides_self):
+        for j, o in enumerate(sides_other):
+            if s != o:
+                continue
+            out[:, i, j] = (math.cos(th_s[s]) * math.cos(th_o[o]) * alpha["vertical"]
+                            + math.sin(th_s[s]) * math.sin(th_o[o]) * alpha["lateral"])
+    return out
+
+
+def condition_by_band(tr: WheelsetTransfer) -> pd.DataFrame:
+    """Condition number of ``B`` and regularisation per one-third-octave band of the inversion band.
+
+    Columns ``f_centre_hz, cond_median, cond_max, filter_min`` (the smallest
+    Tikhonov filter factor in the band: < 1 where the regularisation acted).
+    """
+    lo, hi = tr.band_hz
+    k = np.arange(math.floor(10 * math.log10(lo)), math.ceil(10 * math.log10(hi)) + 1)
+    rows = []
+    for kk in k:
+        fc = 10 ** (kk / 10)
+        sel = (tr.freqs_hz >= fc * 10 ** -0.05) & (tr.freqs_hz < fc * 10 ** 0.05) & (tr.freqs_hz >= lo) \
+            & (tr.freqs_hz <= hi)
+        if not sel.any():
+            continue
+        c = tr.condition[sel]
+        rows.append({"f_centre_hz": round(fc, 3), "cond_median": float(np.median(c)), "cond_max": float(np.max(c)),
+                     "filter_min": float(tr.filter_min[sel].min())})
+    return pd.DataFrame(rows)
+
+
+def _interp_matrix(fr: np.ndarray, grid_df: float, T: np.ndarray) -> np.ndarray:
+    """``T`` (on ``k·grid_df``) linearly interpolated at frequencies ``fr`` (0 beyond the grid)."""
+    pos = fr / grid_df
+    i = np.minimum(pos.astype(np.int64), T.shape[0] - 2)
+    w = (pos - i)[:, None, None]
+    out = T[i] * (1 - w) + T[i + 1] * w
+    out[pos > T.shape[0] - 1] = 0
+    return out
+
+
+def cubic_sample(y: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """4-point cubic Lagrange interpolation of the rows of ``y`` at fractional indices ``u`` (NaN outside)."""
+    y = np.ascontiguousarray(y, dtype=float)
+    u = np.ascontiguousarray(u, dtype=float)
+    y2 = y.reshape(-1, y.shape[-1])
+    out = np.empty((y2.shape[0], u.size))
+    _cubic_rows(y2, u.ravel(), out)
+    return out.reshape(y.shape[:-1] + u.shape)
+
+
+def _cubic_rows_py(y, u, out):
+    n = y.shape[1]
+    for j in range(u.size):
+        uj = u[j]
+        if not (uj >= 1.0 and uj <= n - 3):
+            for r in range(y.shape[0]):
+                out[r, j] = np.nan
+            continue
+        i = int(np.floor(uj))
+        t = uj - i
+        w0 = -t * (t - 1.0) * (t - 2.0) / 6.0
+        w1 = (t + 1.0) * (t - 1.0) * (t - 2.0) / 2.0
+        w2 = -(t + 1.0) * t * (t - 2.0) / 2.0
+        w3 = (t + 1.0) * t * (t - 1.0) / 6.0
+        for r in range(y.shape[0]):
+            out[r, j] = y[r, i - 1] * w0 + y[r, i] * w1 + y[r, i + 1] * w2 + y[r, i + 2] * w3
+
+
+try:  # one compiled pass instead of four gathers per row (numba is a dependency of the virtual line too)
+    from numba import njit
+
+    _cubic_rows = njit(cache=True, nogil=True)(_cubic_rows_py)
+except ImportError:  # pragma: no cover - pure numpy fallback
+    def _cubic_rows(y, u, out):
+        n = y.shape[1]
+        i = np.floor(u).astype(np.int64)
+        ok = (i >= 1) & (i <= n - 3)
+        i = np.clip(i, 1, max(n - 3, 1))
+        t = u - i
+        w = (-t * (t - 1) * (t - 2) / 6, (t + 1) * (t - 1) * (t - 2) / 2, -(t + 1) * t * (t - 2) / 2,
+             (t + 1) * t * (t - 1) / 6)
+        out[:] = sum(y[:, i - 1 + k] * w[k] for k in range(4))
+        out[:, ~ok] = np.nan
+
+
+@dataclass(frozen=True, eq=False)
+class TimeIrregularity:
+    """Irregularity at the wheels of one wheelset as functions of time, per valid stretch.
+
+    ``segments`` holds ``(t_first, values (n_sides, n_up))`` with samples at
+    ``t_first + j / (UPSAMPLE fs)``; only the part inside ``[t_valid0, t_valid1]``
+    (edges dropped) is used.
+    """
+
+    kind: str
+    wheelset: int
+    sides: tuple[str, ...]
+    fs: float
+    segments: tuple[tuple[float, float, float, np.ndarray], ...]
+
+    def sample(self, t: np.ndarray) -> np.ndarray:
+        """Values (n_sides, len(t)) at times ``t`` (NaN where no valid stretch covers ``t``)."""
+        t = np.asarray(t, float)
+        out = np.full((len(self.sides), t.size), np.nan)
+        rate = UPSAMPLE * self.fs
+        for t_first, v0, v1, y in self.segments:
+            sel = (t >= v0) & (t <= v1)
+            if not sel.any():
+                continue
+            out[:, sel] = cubic_sample(y, (t[sel] - t_first) * rate)
+        return out
+
+    def same_segments(self, other: "TimeIrregularity") -> bool:
+        return len(self.segments) == len(other.segments) and all(
+            a[:3] == b[:3] and a[3].shape[1] == b[3].shape[1] for a, b in zip(self.segments, other.segments))
+
+    @property
+    def valid_time(self) -> float:
+        return float(sum(v1 - v0 for _, v0, v1, _ in self.segments))
+
+
+def sample_many(tis: Sequence[TimeIrregularity], t: np.ndarray) -> list[np.ndarray]:
+    """:meth:`TimeIrregularity.sample` of several inversions at the same times (one interpolation when they
+    share their valid stretches, as the models of one wheelset usually do)."""
+    if len(tis) > 1 and all(tis[0].same_segments(o) for o in tis[1:]):
+        rows = [len(ti.sides) for ti in tis]
+        stacked = TimeIrregularity(tis[0].kind, tis[0].wheelset, tuple(s for ti in tis for s in ti.sides), tis[0].fs,
+                                   tuple((a[0], a[1], a[2], np.concatenate([ti.segments[k][3] for ti in tis]))
+                                         for k, a in enumerate(tis[0].segments)))
+        out = stacked.sample(t)
+        return np.split(out, np.cumsum(rows)[:-1])
+    return [ti.sample(t) for ti in tis]
+
+
+def _stretches(valid: np.ndarray, min_len: int) -> list[tuple[int, int]]:
+    from estimator.qc import runs_of
+
+    return [(a, b) for a, b in runs_of(valid) if b - a >= min_len]
+
+
+def invert(acc: np.ndarray, t0: float, fs: float, valid: np.ndarray, transfers: Sequence[WheelsetTransfer],
+           weights: Sequence[np.ndarray] | None = None, edge_s: float | None = None,
+           coupled: tuple | None = None) -> TimeIrregularity:
+    """Invert one wheelset's accelerations with one model (module docstring).
+
+    Parameters
+    ----------
+    acc : ndarray (n_channels, n)
+        The accelerations of ``transfers[0].channels`` [m/s²], in that order.
+    t0, fs : float
+        Time of the first sample [s] and sampling rate [Hz].
+    valid : ndarray of bool (n,)
+        Samples no quality-control finding masks for these channels.
+    transfers : sequence of WheelsetTransfer
+        One per set of contact angles (same model, wheelset and channels).
+    weights : sequence of ndarray (n,), optional
+        Weight of each transfer at each sample (sum 1); default: the first only.
+    edge_s : float, optional
+        Edge dropped at both ends of each stretch [s] (default: the transfers' longest ``edge_s``); a common
+        value lets several models share their valid stretches.
+    coupled : (acc_other, valid_other, transfers_other, couplings), optional
+        The other wheelset of the bogie (same time base): its accelerations, valid samples, one transfer per
+        class (with ``P``) and the rail coupling per class (:func:`rail_coupling`); its forces' share of the
+        rail deflection is added. A sample counts as valid only when both wheelsets' are.
+
+    Returns
+    -------
+    TimeIrregularity
+    """
+    tr0 = transfers[0]
+    if acc.shape[0] != len(tr0.channels):
+        raise ChannelError(f"{acc.shape[0]} acceleration rows for a transfer function of channels {tr0.channels}")
+    if weights is None:
+        weights = [np.ones(acc.shape[1])] + [np.zeros(acc.shape[1])] * (len(transfers) - 1)
+    edge = max(tr.edge_s for tr in transfers) if edge_s is None else max(edge_s, *(tr.edge_s for tr in transfers))
+    e = int(math.ceil(edge * fs))
+    grid_df = float(tr0.freqs_hz[1] - tr0.freqs_hz[0])
+    if coupled is not None:
+        acc_o, valid_o, transfers_o, couplings = coupled
+        valid = valid & valid_o
+    segs = []
+    for a, b in _stretches(valid, 2 * e + int(fs)):  # a stretch must outlast its two edges by >= 1 s
+        x = acc[:, a:b]
+        x = x - x.mean(axis=1, keepdims=True)
+        n = b - a
+        nfft = sfft.next_fast_len(n + e)
+        X = sfft.rfft(x, n=nfft, axis=1)
+        fr = np.arange(X.shape[1]) * fs / nfft
+        if coupled is not None:
+            xo = acc_o[:, a:b]
+            Xo = sfft.rfft(xo - xo.mean(axis=1, keepdims=True), n=nfft, axis=1)
+        y = np.zeros((len(tr0.sides), UPSAMPLE * nfft))
+        for k, (tr, w) in enumerate(zip(transfers, weights)):
+            ws = w[a:b]
+            if not np.any(ws > 0):
+                continue
+            Tb = _interp_matrix(fr, grid_df, tr.T)
+            Y = np.einsum("boi,ib->ob", Tb, X)
+            if coupled is not None:
+                # the other wheelset's contact forces deflect the rail under this one (rail_coupling)
+                Fo = np.einsum("boi,ib->ob", _interp_matrix(fr, grid_df, transfers_o[k].P), Xo)
+                Y += np.einsum("bos,sb->ob", _interp_matrix(fr, grid_df, couplings[k]), Fo)
+            yc = sfft.irfft(Y, n=UPSAMPLE * nfft, axis=1) * UPSAMPLE
+            wu = np.interp(np.arange(UPSAMPLE * nfft) / UPSAMPLE, np.arange(n), ws, right=0.0)
+            y += yc * wu
+        t_first = t0 + a / fs
+        segs.append((t_first, t0 + (a + e) / fs, t0 + (b - 1 - e) / fs, y[:, :UPSAMPLE * n]))
+    return TimeIrregularity(tr0.kind, tr0.wheelset, tr0.sides, fs, tuple(segs))

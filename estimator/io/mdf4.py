@@ -1,0 +1,85 @@
+"""ASAM MDF 4 run files through asammdf.
+
+The field contract: accelerations, speed, position and balise events as
+channels (each with its unit; speed/position may sit in their own channel
+group at a lower rate; the balise channel has one sample per passage), and
+the run header as ``<common_properties>`` of the header block's comment
+(``run_id, date, direction, leading_end, train, bogie, line``).
+"""
+
+from __future__ import annotations
+
+import logging
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+
+from estimator.errors import RunFileError
+from estimator.io.registry import RawChannel, RawRecording
+
+__all__ = ["sniff", "read_raw", "header_properties"]
+
+log = logging.getLogger("estimator")
+
+
+def sniff(path: Path, head: bytes) -> bool:
+    return head[:3] == b"MDF"
+
+
+def header_properties(comment: str) -> dict[str, str]:
+    """``<e name="key">value</e>`` entries of an MDF 4 header comment's ``<common_properties>``."""
+    if not comment or "<" not in comment:
+        return {}
+    try:
+        root = ET.fromstring(comment)
+    except ET.ParseError:
+        return {}
+    out = {}
+    for el in root.iter():
+        if el.tag == "e" and el.get("name"):
+            out[el.get("name")] = (el.text or "").strip()
+    return out
+
+
+def read_raw(path: Path) -> RawRecording:
+    """Every channel of an MDF 4 file (time stamps, values, unit) and the header's common properties.
+
+    Raises
+    ------
+    RunFileError
+        The file is not a readable MDF 4 file (truncated, corrupt) — named with asammdf's reason.
+    """
+    from asammdf import MDF
+
+    try:
+        mdf = MDF(str(path))
+    except Exception as exc:  # noqa: BLE001 - asammdf raises many kinds on a damaged file
+        raise RunFileError(f"{path}: not a readable MDF 4 file ({type(exc).__name__}: {exc}); the file may be "
+                           "truncated or corrupt") from None
+    try:
+        if int(str(mdf.version).split(".")[0]) < 4:
+            raise RunFileError(f"{path}: MDF version {mdf.version}; the field contract uses MDF 4")
+        header = header_properties(mdf.header.comment or "")
+        channels: dict[str, RawChannel] = {}
+        for name, where in mdf.channels_db.items():
+            if name in ("time", "t", "") or name in channels:
+                continue
+            group, index = where[0]
+            if index == mdf.masters_db.get(group):
+                continue
+            try:
+                sig = mdf.get(name, group=group, index=index, raw=False)
+            except Exception as exc:  # noqa: BLE001
+                raise RunFileError(f"{path}: channel {name!r} cannot be read ({type(exc).__name__}: {exc}); the "
+                                   "file may be truncated") from None
+            values = np.asarray(sig.samples)
+            if values.dtype.kind not in "fiu":
+                continue
+            channels[name] = RawChannel(name, np.asarray(sig.timestamps, float), values.astype(float),
+                                        str(sig.unit or ""))
+    finally:
+        mdf.close()
+    if not channels:
+        raise RunFileError(f"{path}: the MDF file holds no numeric channel; the file may be truncated")
+    return RawRecording(channels, header)

@@ -1,0 +1,177 @@
+"""Quality control of a run before anything is inverted or averaged: every finding masked and logged.
+
+Per acceleration channel:
+
+* **dropouts** — NaN samples, and *flat* segments where the front end holds
+  its last value (``≥ flat_min_s`` of bit-identical consecutive samples: a
+  live 24-bit channel with sensor noise never repeats a value that long);
+* **clipping** — samples at the channel's largest magnitude that recur
+  (``≥ clip_min_samples`` samples within 0.1 % of the extreme: a signal that
+  merely peaks once is not clipped); the whole excursion beyond 99 % of that
+  level is masked.
+
+For the whole run (every channel):
+
+* **low speed / standstill** — speed along the direction of travel below
+  ``speed_gate_m_s`` (below ``standstill_m_s`` it is logged as standstill);
+* **reversing** — negative speed along the direction of travel, or a
+  chainage that runs backwards;
+* **odometry** — stretches whose balise resets imply an implausible odometer
+  scale (:func:`estimator.spatial.odometry_track`).
+
+Each finding is a :class:`~estimator.run.QCEvent` (kind, channel, time and
+chainage range, reason, action) logged at WARNING; masked samples are never
+interpolated over (the inversion splits the run at them). Channels rejected
+while reading (missing, wrong rate) are carried into the events.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from estimator.config import EstimatorConfig
+from estimator.run import QCEvent, QCMask, Run
+from estimator.spatial import OdometryTrack
+
+__all__ = ["check_run", "runs_of", "dropouts", "flat_segments", "clipped"]
+
+log = logging.getLogger("estimator")
+
+
+def runs_of(flag: np.ndarray) -> list[tuple[int, int]]:
+    """Half-open index ranges ``[i, j)`` where ``flag`` is True."""
+    f = np.asarray(flag, bool)
+    if not f.any():
+        return []
+    d = np.diff(np.concatenate([[0], f.view(np.int8), [0]]))
+    starts = np.flatnonzero(d == 1)
+    ends = np.flatnonzero(d == -1)
+    return list(zip(starts.tolist(), ends.tolist()))
+
+
+def _grow(flag: np.ndarray, n: int) -> np.ndarray:
+    if n <= 0 or not flag.any():
+        return flag
+    idx = np.flatnonzero(np.diff(np.concatenate([[0], flag.view(np.int8), [0]])))
+    out = flag.copy()
+    for a, b in zip(idx[::2], idx[1::2]):
+        out[max(a - n, 0):min(b + n, flag.size)] = True
+    return out
+
+
+def dropouts(x: np.ndarray) -> np.ndarray:
+    """NaN (or infinite) samples."""
+    return ~np.isfinite(x)
+
+
+def flat_segments(x: np.ndarray, min_len: int) -> np.ndarray:
+    """Samples inside runs of ≥ ``min_len`` bit-identical consecutive finite values."""
+    same = np.zeros(x.size, bool)
+    if x.size < 2:
+        return same
+    eq = (x[1:] == x[:-1]) & np.isfinite(x[1:])
+    out = np.zeros(x.size, bool)
+    for a, b in runs_of(eq):
+        if b - a + 1 >= min_len:
+            out[a:b + 1] = True
+    return out
+
+
+def clipped(x: np.ndarray, min_samples: int) -> tuple[np.ndarray, float]:
+    """Clipped excursions of a channel and the clip level (0 when none).
+
+    The level is the largest magnitude; the channel is clipped when at least
+    ``min_samples`` samples sit within 0.1 % of it (a saturated ADC or
+    amplifier holds its rail); every sample beyond 99 % of the level is
+    flagged.
+    """
+    a = np.abs(x[np.isfinite(x)])
+    if a.size == 0:
+        return np.zeros(x.size, bool), 0.0
+    level = float(a.max())
+    if level == 0:
+        return np.zeros(x.size, bool), 0.0
+    at_rail = np.abs(x) >= level * (1 - 1e-3)
+    if int(np.nansum(at_rail)) < min_samples:
+        return np.zeros(x.size, bool), 0.0
+    return np.nan_to_num(np.abs(x), nan=0.0) >= 0.99 * level, level
+
+
+def _events(kind: str, channel: str, flag: np.ndarray, t: np.ndarray, chain: np.ndarray, reason: str,
+            merge: int) -> list[QCEvent]:
+    """One event per run of flagged samples; runs closer than ``merge`` samples are reported as one."""
+    spans: list[list[int]] = []
+    for a, b in runs_of(flag):
+        if spans and a - spans[-1][1] < merge:
+            spans[-1][1] = b
+        else:
+            spans.append([a, b])
+    out = []
+    for a, b in spans:
+        c0, c1 = sorted((float(chain[a]), float(chain[b - 1])))
+        out.append(QCEvent(kind, channel, float(t[a]), float(t[b - 1]), reason, "masked", c0, c1))
+    return out
+
+
+def check_run(run: Run, track: OdometryTrack, config: EstimatorConfig = EstimatorConfig()) -> Run:
+    """Quality control (module docstring): the run with its :class:`~estimator.run.QCMask` set.
+
+    Parameters
+    ----------
+    run : Run
+        With sensitivities applied.
+    track : OdometryTrack
+        The run's continuous chainage (:func:`estimator.spatial.odometry_track`).
+    config : EstimatorConfig
+    """
+    t = run.t
+    chain = track.chainage_at(t)
+    speed = track.speed_at(t)
+    fs = run.fs
+    margin = int(round(config.mask_margin_s * fs))
+    merge = int(round(0.1 * fs))
+    n_ch, n = run.acceleration.shape
+    masked = np.zeros((n_ch, n), bool)
+    events: list[QCEvent] = list(run.rejected)
+    for i, name in enumerate(run.names):
+        x = run.acceleration[i]
+        nan = dropouts(x)
+        flat = flat_segments(x, max(2, int(round(config.flat_min_s * fs))))
+        clip, level = clipped(x, config.clip_min_samples)
+        for flag, kind, reason in (
+                (nan, "dropout_nan", "no data (NaN) in the recording"),
+                (flat, "dropout_flat", f"value held constant for >= {config.flat_min_s * 1e3:g} ms (front end "
+                                       "holding its last sample)"),
+                (clip & ~flat, "clipping", f"channel saturated at {level:.4g} m/s^2 (>= {config.clip_min_samples} "
+                                           "samples at the extreme)")):
+            if flag.any():
+                events.extend(_events(kind, name, flag, t, chain, reason, merge))
+        masked[i] = _grow(nan | flat | clip, margin)
+    # whole-run findings
+    reverse = (speed < -config.standstill_m_s)
+    dchain = np.gradient(chain) * track.travel_sign if n > 1 else np.zeros(n)
+    reverse |= dchain < -config.standstill_m_s / fs
+    still = (np.abs(speed) < config.standstill_m_s) & ~reverse
+    slow = (speed < config.speed_gate_m_s) & ~still & ~reverse
+    untrusted = np.zeros(n, bool)
+    for t0, t1 in track.untrusted:
+        untrusted |= (t >= t0) & (t <= t1)
+    for flag, kind, reason in (
+            (still, "standstill", f"|speed| below {config.standstill_m_s:g} m/s"),
+            (slow, "low_speed", f"speed below the gate {config.speed_gate_m_s:g} m/s"),
+            (reverse, "reversing", "moving against the run's direction of travel"),
+    ):
+        if flag.any():
+            events.extend(_events(kind, "*", flag, t, chain, reason, merge))
+    events.extend(e for e in track.events if e.kind in ("odometry_jump", "odometry_inconsistent"))
+    run_mask = still | slow | reverse | untrusted
+    masked |= run_mask[None, :]
+    for e in events:
+        if e.action in ("masked", "rejected"):
+            log.warning("%s: %s", run.source, e.describe())
+    mask = QCMask(masked, tuple(events))
+    share = mask.share(run.names)
+    return run.with_mask(mask, f"quality control: {len(events)} finding(s); masked share {100 * share['run']:.1f} % "
+                               f"of the run (speed gate {config.speed_gate_m_s:g} m/s)")

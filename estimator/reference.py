@@ -1,0 +1,162 @@
+"""A reference roughness (trolley, or a simulation's truth) through the same EN processing, and the comparison.
+
+The reference is processed exactly as the estimate: the EN 13231-3 band
+filters and Table 4.1 windows on its own (fine) grid, and EN 15610 Method A
+on the same stretches. The comparison is made per band and rail on
+chainage windows (1 m by default): in each window the energy mean of the
+peak-to-peak amplitude ``sqrt(mean(pk²))`` of estimate and reference, and
+the error ``20 lg(pk_est / pk_ref)`` [dB]. Reported: the mean and RMS of
+the window errors, the share of windows within ±3 dB, and the error of the
+stretch's energy mean — over the windows where the reference is above a
+floor (``min_reference_um``: below it a band holds no corrugation to
+measure). The reference's chainage is used as given (alignment of a
+trolley's own chainage is issue 14's business).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from estimator.config import EstimatorConfig
+from estimator.results import FieldEstimate
+from estimator.standards.en13231 import BandIndexes, band_indexes
+from estimator.standards.en15610 import roughness_spectrum
+
+__all__ = ["ReferenceIndexes", "reference_indexes", "window_pk", "compare_bands", "compare_spectra",
+           "models_ranking"]
+
+
+@dataclass(frozen=True, eq=False)
+class ReferenceIndexes:
+    """EN 13231-3 indexes of a reference per rail on its own uniform grid."""
+
+    x: dict
+    profile: dict
+    indexes: dict
+
+    def pk_pk(self, band, rail) -> tuple[np.ndarray, np.ndarray]:
+        idx = self.indexes[rail]
+        return self.x[rail], idx.pk_pk[idx.bands_mm.index(tuple(band))]
+
+
+def reference_indexes(reference: pd.DataFrame, config: EstimatorConfig = EstimatorConfig(),
+                      span: tuple[float, float] | None = None) -> ReferenceIndexes:
+    """Band indexes of a reference table ``chainage_m, rail, roughness_m`` (each rail resampled to a uniform grid)."""
+    xs, ps, ids = {}, {}, {}
+    for rail, g in reference.groupby("rail"):
+        x = g["chainage_m"].to_numpy(float)
+        r = g["roughness_m"].to_numpy(float)
+        order = np.argsort(x)
+        x, r = x[order], r[order]
+        if span is not None:
+            sel = (x >= span[0] - 10) & (x <= span[1] + 10)
+            x, r = x[sel], r[sel]
+        if x.size < 10:
+            continue
+        dx = float(np.median(np.diff(x)))
+        grid = x[0] + dx * np.arange(int(round((x[-1] - x[0]) / dx)) + 1)
+        prof = np.interp(grid, x, r)
+        xs[rail], ps[rail] = grid, prof
+        bi = band_indexes(prof[None, :], dx, config.bands_mm, [config.window_m(b) for b in config.bands_mm])
+        ids[rail] = BandIndexes(bi.dx, bi.bands_mm, bi.windows_m, bi.pk_pk[:, 0], bi.decimation)
+    return ReferenceIndexes(xs, ps, ids)
+
+
+def window_pk(x: np.ndarray, pk: np.ndarray, edges: np.ndarray, min_valid: float = 0.5) -> np.ndarray:
+    """Energy mean of ``pk`` in each window ``[edges[i], edges[i+1])`` (NaN with < ``min_valid`` valid share)."""
+    idx = np.searchsorted(x, edges)
+    out = np.full(edges.size - 1, np.nan)
+    for i in range(edges.size - 1):
+        seg = pk[idx[i]:idx[i + 1]]
+        if seg.size == 0:
+            continue
+        ok = np.isfinite(seg)
+        if ok.mean() >= min_valid:
+            out[i] = math.sqrt(float(np.mean(seg[ok] ** 2)))
+    return out
+
+
+def compare_bands(estimate: FieldEstimate, ref: ReferenceIndexes, span: tuple[float, float], *,
+                  window_m: float = 1.0, min_reference_um: float | dict = 0.0, models=None, wheelsets=None,
+                  bands=None) -> pd.DataFrame:
+    """Band pk-pk errors of the estimate against the reference on ``span`` (module docstring).
+
+    Returns one row per wheelset, model, rail and band: ``n_windows, mean_error_db, rms_error_db,
+    within_3db_pct, energy_error_db, est_db, ref_db`` (levels of the energy means, dB re 1 µm).
+    """
+    edges = np.arange(span[0], span[1] + 1e-9, window_m)
+    rows = []
+    for (w, m), p in estimate.profiles.items():
+        if (models and m not in models) or (wheelsets and w not in wheelsets):
+            continue
+        for band in p.indexes.bands_mm:
+            if bands and tuple(band) not in [tuple(b) for b in bands]:
+                continue
+            floor = min_reference_um.get(tuple(band), 0.0) if isinstance(min_reference_um, dict) else min_reference_um
+            for rail in p.rails:
+                if rail not in ref.indexes:
+                    continue
+                e = window_pk(p.chainage_m, p.pk_pk(band, rail), edges)
+                xr, pr = ref.pk_pk(band, rail)
+                r = window_pk(xr, pr, edges)
+                ok = np.isfinite(e) & np.isfinite(r) & (r > floor * 1e-6) & (e > 0)
+                if not ok.any():
+                    rows.append({"wheelset": w, "role": p.role, "model": m, "rail": rail,
+                                 "band_mm": f"{band[0]:g}-{band[1]:g}", "n_windows": 0})
+                    continue
+                err = 20 * np.log10(e[ok] / r[ok])
+                rows.append({
+                    "wheelset": w, "role": p.role, "model": m, "rail": rail, "band_mm": f"{band[0]:g}-{band[1]:g}",
+                    "n_windows": int(ok.sum()), "mean_error_db": float(err.mean()),
+                    "rms_error_db": float(np.sqrt(np.mean(err ** 2))),
+                    "within_3db_pct": float(100 * np.mean(np.abs(err) <= 3.0)),
+                    "energy_error_db": float(10 * np.log10(np.mean(e[ok] ** 2) / np.mean(r[ok] ** 2))),
+                    "est_db": float(10 * np.log10(np.mean(e[ok] ** 2) / 1e-12)),
+                    "ref_db": float(10 * np.log10(np.mean(r[ok] ** 2) / 1e-12))})
+    return pd.DataFrame(rows)
+
+
+def compare_spectra(estimate: FieldEstimate, ref: ReferenceIndexes, span: tuple[float, float],
+                    config: EstimatorConfig = EstimatorConfig(), models=None, wheelsets=None) -> pd.DataFrame:
+    """EN 15610 levels of estimate and reference on ``span``, per band the run resolves (error in dB)."""
+    rows = []
+    f_lo, f_hi = estimate.band_hz
+    for (w, m), p in estimate.profiles.items():
+        if (models and m not in models) or (wheelsets and w not in wheelsets):
+            continue
+        i0, i1 = np.searchsorted(p.chainage_m, span)
+        v = p.speed_m_s[i0:i1]
+        for i, rail in enumerate(p.rails):
+            if rail not in ref.profile:
+                continue
+            seg = p.rail[i, i0:i1]
+            vv = v[np.isfinite(v) & np.isfinite(seg)]
+            if vv.size == 0:
+                continue
+            res = (float(vv.max()) / f_hi, float(vv.min()) / f_lo)
+            se = roughness_spectrum(seg, p.dx, segment_m=config.en15610_segment_m, resolved_m=res)
+            xr = ref.x[rail]
+            j0, j1 = np.searchsorted(xr, span)
+            sr = roughness_spectrum(ref.profile[rail][j0:j1], float(xr[1] - xr[0]), segment_m=config.en15610_segment_m)
+            for b, wl, le, lr in zip(se.bands, se.wavelength_m, se.level_db, sr.level_db):
+                rows.append({"wheelset": w, "role": p.role, "model": m, "rail": rail, "band": int(b),
+                             "wavelength_m": float(wl), "est_db": float(le), "ref_db": float(lr),
+                             "error_db": float(le - lr) if np.isfinite(le) and np.isfinite(lr) else math.nan})
+    return pd.DataFrame(rows)
+
+
+def models_ranking(errors: pd.DataFrame) -> pd.DataFrame:
+    """Which model is closest to the reference per band and rail (smallest RMS window error)."""
+    if errors.empty or "rms_error_db" not in errors:
+        return pd.DataFrame()
+    e = errors.dropna(subset=["rms_error_db"])
+    rows = []
+    for (w, rail, band), g in e.groupby(["wheelset", "rail", "band_mm"]):
+        g = g.sort_values("rms_error_db")
+        rows.append({"wheelset": w, "rail": rail, "band_mm": band, "best_model": g["model"].iloc[0],
+                     **{f"rms_error_db_{r.model}": r.rms_error_db for r in g.itertuples()}})
+    return pd.DataFrame(rows)

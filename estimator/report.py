@@ -1,0 +1,145 @@
+"""The field report: one self-contained HTML page an analyst reads top to bottom (figures embedded as PNG).
+
+Sections:
+
+1. the run — header, direction, leading wheelset, duration, speeds;
+2. quality control — masked share per channel, every finding, the mask map;
+3. odometry — balise resets, wheelbase, wheel circumferences, spatial step
+   and the shortest wavelength the run resolves;
+4. inversion — models, band, regularisation, condition number per band;
+5. roughness per rail — EN 13231-3 band peak-to-peak along chainage (thesis
+   Fig. 4.9 style) and the index table per stretch;
+6. the three models compared — against the reference when one is given
+   (which model wins in which band, measured), otherwise their spread;
+7. EN 15610 spectra with the ISO 3095 limit;
+8. corrugation type — dominant wavelength, frequency, mechanism (Table 1.1);
+9. wheels — wheel roughness orders, polygons;
+10. leading against trailing wheelset;
+11. processing history and options.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+import pandas as pd
+
+from estimator.html import escape, figure_html, fmt_number, page, table_html
+
+__all__ = ["write_report", "SECTION_TITLES"]
+
+SECTION_TITLES = (
+    "1. The run", "2. Quality control", "3. Odometry and spatial sampling", "4. Inversion",
+    "5. Roughness per rail (EN 13231-3)", "6. The three models compared", "7. EN 15610 spectra",
+    "8. Corrugation type", "9. Wheels", "10. Leading and trailing wheelsets", "11. Processing history and options",
+)
+
+_e, _fmt, _table, _figure = escape, fmt_number, table_html, figure_html
+
+
+def write_report(estimate, path, *, figures: Mapping[str, Path] | None = None,
+                 comparison: pd.DataFrame | None = None, ranking: pd.DataFrame | None = None,
+                 spectra_comparison: pd.DataFrame | None = None, lead_trail: pd.DataFrame | None = None) -> Path:
+    """Write the report of one estimate (module docstring) to ``path``; figures are PNG files embedded."""
+    fig = dict(figures or {})
+    e = estimate
+    parts = [f"<h1>Rail roughness from axlebox accelerations — run {_e(e.run_id)}</h1>"]
+    # 1
+    speeds = [p.speed_m_s for p in e.profiles.values()]
+    v = np.concatenate(speeds) if speeds else np.zeros(0)
+    v = v[np.isfinite(v)]
+    hdr = pd.DataFrame([{"field": k, "value": v_} for k, v_ in e.header.items()])
+    parts += [f"<h2>{SECTION_TITLES[0]}</h2>",
+              f"<div class='box'>File {_e(e.source)}; {e.duration_s:.1f} s at {e.fs:g} Hz; travelling "
+              f"<b>{_e(e.direction)}</b> (car {_e(e.orientation)}): wheelset <b>{e.leading}</b> leads. Speed over the "
+              f"estimated stretches {_fmt(v.min() if v.size else float('nan'), 3)}–"
+              f"{_fmt(v.max() if v.size else float('nan'), 3)} m/s.</div>", _table(hdr)]
+    # 2
+    share = pd.DataFrame([{"channel": k, "masked_pct": 100 * s} for k, s in e.masked_share.items()])
+    parts += [f"<h2>{SECTION_TITLES[1]}</h2>",
+              "<p>Every finding is masked (samples excluded; the inversion splits the run there, nothing is "
+              "interpolated over) or rejected (channel not used), and logged with its channel, time and chainage.</p>",
+              _table(share), _table(e.qc, 80), _figure(fig.get("mask_map"), "Masked spans along chainage by reason.")]
+    if e.skipped:
+        parts.append("<div class='box warn'>Not estimated: " + "; ".join(_e(s) for s in e.skipped) + "</div>")
+    # 3
+    circ = pd.DataFrame([{"wheelset": w, "circumference_m": c.circumference_m, "radius_m": c.radius_m,
+                          "significance": c.significance, "dx_mm": 1e3 * e.dx_m[w]} for w, c in e.circumference.items()])
+    parts += [f"<h2>{SECTION_TITLES[2]}</h2>",
+              f"<p>Wheelbase {e.wheelbase_m:.3f} m ({_e(e.wheelbase_source)}). Shortest wavelength the run resolves "
+              f"{1e3 * e.lambda_min_m:.1f} mm (speed gate / f_hi); each wheelset's profile has a whole number of "
+              "samples per wheel revolution.</p>", _table(e.odometry), _table(circ)]
+    # 4
+    f_lo, f_hi = e.band_hz
+    cond = []
+    for (w, m), p in e.profiles.items():
+        if w == e.leading:
+            c = p.conditioning.copy()
+            c.insert(0, "model", m)
+            cond.append(c)
+    parts += [f"<h2>{SECTION_TITLES[3]}</h2>",
+              f"<p>Band {f_lo:g}–{f_hi:g} Hz; Tikhonov regularisation with α = {e.config.get('regularisation')} "
+              "relative to the one-third-octave envelope of the largest singular value of B (data known to about "
+              "2 %: calibration and mounting); condition number of B and the smallest filter factor per "
+              "one-third-octave band (leading wheelset; a factor below 1 marks where the regularisation acted).</p>",
+              _table(pd.concat(cond, ignore_index=True) if cond else pd.DataFrame(), 80)]
+    # 5
+    parts.append(f"<h2>{SECTION_TITLES[4]}</h2>")
+    for k in sorted(f for f in fig if f.startswith("band_")):
+        parts.append(_figure(fig[k], f"EN 13231-3 peak-to-peak ({k[5:].replace('_', '–')} mm) along chainage per "
+                                     "rail, the three models (thesis Fig. 4.9 style); dashed: the reference."))
+    ix = e.indexes
+    if not ix.empty:
+        ix = ix[(ix["wheelset"] == e.leading) & (ix["band_mm"].isin(["30-100", "100-300"]))]
+    parts.append(_table(ix, 80))
+    # 6
+    parts.append(f"<h2>{SECTION_TITLES[5]}</h2>")
+    if comparison is not None and not comparison.empty:
+        parts += ["<p>Against the reference (per 1 m window: energy mean of the band peak-to-peak, error in dB).</p>",
+                  _table(comparison, 80)]
+        if ranking is not None and not ranking.empty:
+            parts += ["<p><b>Which model wins</b> (smallest RMS window error) per band and rail:</p>",
+                      _table(ranking)]
+    else:
+        parts.append("<p>No reference was given: the table shows each model's median band peak-to-peak over the run "
+                     "(their spread is the model uncertainty).</p>")
+        ix = e.indexes
+        if not ix.empty:
+            piv = ix[(ix["stretch"] == "run") & (ix["wheelset"] == e.leading)].pivot_table(
+                index=["rail", "band_mm"], columns="model", values="median_pk_pk_um").reset_index()
+            parts.append(_table(piv))
+    # 7
+    parts.append(f"<h2>{SECTION_TITLES[6]}</h2>")
+    for k in sorted(f for f in fig if f.startswith("spectra_")):
+        parts.append(_figure(fig[k], f"EN 15610 one-third-octave roughness level, {k[8:]}, with the ISO 3095 limit "
+                                     "(bands the run resolves only)."))
+    if spectra_comparison is not None and not spectra_comparison.empty:
+        parts.append(_table(spectra_comparison.dropna(subset=["error_db"]), 80))
+    # 8
+    parts += [f"<h2>{SECTION_TITLES[7]}</h2>",
+              "<p>Dominant wavelength of each corrugated stretch (median band peak-to-peak above the threshold), its "
+              "speed and frequency f = v/λ (thesis eq. 1.1) against the model's resonances (thesis Table 1.1).</p>",
+              _table(e.resonances), _table(e.corrugation, 60)]
+    # 9
+    wo = e.wheel_orders()
+    parts += [f"<h2>{SECTION_TITLES[8]}</h2>",
+              _figure(fig.get("wheel_orders"), "Wheel roughness per order from the synchronous average; orders above 4× "
+                                                "the floor the rail leaves are polygon orders."),
+              _table(wo[wo["significant"]].sort_values("amplitude_um", ascending=False) if not wo.empty else wo, 30)]
+    # 10
+    parts.append(f"<h2>{SECTION_TITLES[9]}</h2>")
+    if lead_trail is not None and not lead_trail.empty:
+        parts += ["<p>The trailing wheelset is a second, independent estimate of the same rails: band peak-to-peak "
+                  "differences per 1 m window (dB).</p>", _table(lead_trail)]
+    else:
+        parts.append("<p>Only one wheelset was estimated.</p>")
+    # 11
+    parts += [f"<h2>{SECTION_TITLES[10]}</h2>", "<pre>" + _e("\n".join(e.processing)) + "</pre>",
+              "<pre>" + _e(json.dumps({k: str(v) for k, v in e.config.items()}, indent=1)) + "</pre>",
+              "<pre>" + _e(json.dumps({k: round(v, 4) for k, v in e.timings_s.items()})) + "</pre>"]
+    out = Path(path)
+    out.write_text(page(f"Field estimate {e.run_id}", parts), encoding="utf-8")
+    return out

@@ -1,0 +1,245 @@
+"""Time → space: a continuous chainage from the odometer, balise resets handled, and the spatial grid.
+
+**Odometry.** The odometer integrates the encoder speed with the *nominal*
+wheel radius and is reset to a balise's reference chainage at each passage
+(field contract), so its position carries a scale error (worn wheel) and
+jumps at balises. :func:`odometry_track` turns it into a continuous
+chainage:
+
+1. the jumps are removed, giving the raw travelled distance ``d(t)``;
+2. each balise passage pins the chainage: right after the reset the
+   odometer reads the balise's reference chainage plus the distance counted
+   since the passage, an absolute chainage ``c_k`` at raw distance ``d_k``; between two passages the chainage is linear in
+   ``d``: ``c_k + s_k (d − d_k)`` with ``s_k = (c_{k+1} − c_k)/(d_{k+1} − d_k)``
+   (the scale error of that stretch, corrected retroactively); before the
+   first and after the last passage the nearest stretch's scale is used
+   (without any balise: the odometer as recorded). This removes the run's
+   start offset and the scale error between balises;
+3. a stretch whose implied scale error exceeds ``max_scale_error`` (an
+   odometry fault, not wheel wear) is not trusted: it is **masked** and
+   logged (chainages, the implied error), and kept at scale 1; so is a
+   stretch holding a position jump that no balise event explains.
+
+The result also gives the signed speed along the run's direction of travel
+(negative = reversing), from the speed channel times the stretch scale.
+
+**Spatial step.** A run resolves wavelengths ``λ ≥ v/f_hi`` where it is fast
+and ``λ ≤ v/f_lo`` where it is slow; the shortest wavelength a run resolves
+is ``λ_min = v_gate / f_hi`` (``v_gate`` the lowest speed quality control
+accepts). :func:`spatial_step` picks the largest step of the 1–2–5 series not
+above ``λ_min / 3`` (three samples per shortest wavelength: band-limited
+interpolation keeps the amplitude to < 0.1 dB, see :mod:`estimator.inversion`).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from estimator.errors import OdometryError
+from estimator.run import Odometry, QCEvent
+
+__all__ = ["OdometryTrack", "odometry_track", "spatial_step", "nice_step"]
+
+log = logging.getLogger("estimator")
+
+#: a position step that the speed does not explain by more than this (plus 5 %) is a jump [m]
+JUMP_TOLERANCE_M = 0.05
+
+
+@dataclass(frozen=True, eq=False)
+class OdometryTrack:
+    """Continuous chainage of the odometry's reference point (the bogie centre) against time.
+
+    Attributes
+    ----------
+    t : ndarray
+        Odometry time stamps [s].
+    chainage : ndarray
+        Corrected chainage [m] (continuous, balise-pinned).
+    speed : ndarray
+        Speed along the direction of travel [m/s] (encoder speed × stretch scale; < 0 reversing).
+    scale : ndarray
+        Scale applied at each time (1 where no balise pins the odometer).
+    resets : tuple of dict
+        Per balise passage: ``t_s, balise_m, position_before_m, jump_m, scale_after, action``.
+    events : tuple of QCEvent
+        Findings (resets corrected, implausible stretches masked).
+    travel_sign : int
+        +1 travelling towards increasing chainage.
+    """
+
+    t: np.ndarray
+    chainage: np.ndarray
+    speed: np.ndarray
+    scale: np.ndarray
+    resets: tuple[dict, ...]
+    events: tuple[QCEvent, ...]
+    travel_sign: int
+    untrusted: tuple[tuple[float, float], ...] = field(default_factory=tuple)
+
+    def chainage_at(self, t) -> np.ndarray:
+        """Chainage [m] at times ``t`` (linear between odometry samples: < 0.1 mm at 100 Hz and 1 m/s²)."""
+        return np.interp(t, self.t, self.chainage)
+
+    def speed_at(self, t) -> np.ndarray:
+        return np.interp(t, self.t, self.speed)
+
+
+def _resets(odo: Odometry, travel_sign: int, source: str) -> list[tuple[int, float, float]]:
+    """(sample index just after the reset, balise time, reference chainage) for each balise event."""
+    out = []
+    for tb, cb in zip(odo.balise_t, odo.balise_chainage):
+        j = int(np.searchsorted(odo.t, tb - 1e-9))
+        if j >= odo.t.size:
+            log.warning("%s: balise event at %.3f s after the last odometry sample; ignored", source, tb)
+            continue
+        out.append((j, float(tb), float(cb)))
+    return out
+
+
+def odometry_track(odo: Odometry, travel_sign: int, *, max_scale_error: float = 0.02,
+                   source: str = "") -> OdometryTrack:
+    """Continuous, balise-pinned chainage from a run's odometry (module docstring).
+
+    Parameters
+    ----------
+    odo : Odometry
+    travel_sign : {+1, -1}
+        +1 when the run travels towards increasing chainage.
+    max_scale_error : float
+        Largest plausible odometer scale error between two balises (default 2 %:
+        wheel wear and encoder slip give a few tenths of a per cent).
+    source : str
+        Named in messages.
+    """
+    t = odo.t
+    pos = odo.position
+    if t.size < 2 or not np.all(np.isfinite(t)):
+        raise OdometryError(f"{source}: the odometry needs at least two finite time stamps")
+    ok = np.isfinite(pos)
+    if ok.sum() < 2:
+        raise OdometryError(f"{source}: the position channel holds fewer than two finite values")
+    if not ok.all():
+        pos = np.interp(t, t[ok], pos[ok])  # gaps in the position channel only; QC masks the time they cover
+    resets = _resets(odo, travel_sign, source)
+    # 1. raw travelled distance: remove each reset jump (step minus the step the speed explains)
+    d = pos.astype(float).copy()
+    jumps = []
+    step = np.diff(pos)
+    expected = travel_sign * np.abs(odo.speed[:-1]) * np.diff(t)
+    excess = np.abs(step - expected) > JUMP_TOLERANCE_M + 0.05 * np.abs(expected)
+    reset_idx = {j for j, _, _ in resets}
+    for j, tb, cb in resets:
+        if j == 0:
+            jumps.append(0.0)
+            continue
+        jump = float(step[j - 1] - expected[j - 1])
+        d[j:] -= jump
+        jumps.append(jump)
+    flagged = np.zeros(step.size, bool)
+    flagged[np.flatnonzero(excess)] = True
+    for j in reset_idx:
+        if 0 < j <= step.size:
+            flagged[j - 1] = False
+    from estimator.qc import runs_of
+
+    unexplained, inconsistent = [], []
+    for a, b in runs_of(flagged):
+        if b - a == 1:  # one step: a jump of the position no balise explains; removed from the distance
+            unexplained.append(a + 1)
+            d[a + 1:] -= step[a] - expected[a]
+        else:  # several steps in a row: speed and position disagree (a glitch of either); not corrected
+            inconsistent.append((a, b))
+    # 2. pin the passages: right after a reset the odometer reads the balise's chainage plus the distance
+    #    counted since the passage, so the sample after the reset is an absolute chainage
+    anchors = sorted(((float(d[j]), float(pos[j]), float(t[j]), jump) for (j, _, _), jump in zip(resets, jumps)),
+                     key=lambda a: a[2])
+    events: list[QCEvent] = []
+    untrusted: list[tuple[float, float]] = []
+    for a, b in inconsistent:
+        events.append(QCEvent("odometry_inconsistent", "*", float(t[a]), float(t[b]),
+                              f"speed and position disagree over {b - a} odometry samples (max "
+                              f"{np.max(np.abs(step[a:b] - expected[a:b])):.3f} m per sample)", "masked",
+                              float(min(pos[a], pos[b])), float(max(pos[a], pos[b]))))
+        untrusted.append((float(t[a]), float(t[b])))
+    for j in unexplained:
+        # a jump no balise explains: the odometer cannot be trusted between the anchors around it
+        before = [a[2] for a in anchors if a[2] <= t[j]]
+        after = [a[2] for a in anchors if a[2] > t[j]]
+        t0, t1 = (before[-1] if before else float(t[0])), (after[0] if after else float(t[-1]))
+        events.append(QCEvent("odometry_jump", "*", t0, t1,
+                              f"odometer jump of {step[j - 1] - expected[j - 1]:+.3f} m at {t[j]:.2f} s without a "
+                              "balise event: odometry not trusted until the next balise", "masked",
+                              float(min(pos[j - 1], pos[j])), float(max(pos[j - 1], pos[j]))))
+        untrusted.append((t0, t1))
+    scales = []
+    for k in range(len(anchors) - 1):
+        (d0, c0, t0, _), (d1, c1, t1, _) = anchors[k], anchors[k + 1]
+        s = (c1 - c0) / (d1 - d0) if d1 != d0 else math.nan
+        if not (np.isfinite(s) and abs(s - 1) <= max_scale_error):
+            events.append(QCEvent(
+                "odometry_jump", "*", t0, t1,
+                f"balise reset at {c1:.2f} m implies an odometer scale error of "
+                f"{100 * (s - 1) if np.isfinite(s) else float('nan'):+.2f} % over {abs(c1 - c0):.1f} m, beyond "
+                f"+/-{100 * max_scale_error:g} %: odometry not trusted on this stretch",
+                "masked", min(c0, c1), max(c0, c1)))
+            untrusted.append((t0, t1))
+            s = 1.0
+        scales.append(s)
+    ch = np.empty_like(d)
+    sc = np.ones_like(d)
+    if not anchors:
+        ch[:] = d
+    else:
+        ds = np.array([a[0] for a in anchors])
+        cs = np.array([a[1] for a in anchors])
+        ts = np.array([a[2] for a in anchors])
+        k = np.clip(np.searchsorted(ts, t, side="right") - 1, 0, len(anchors) - 1)
+        # stretch k runs from anchor k to k+1; before the first anchor use stretch 0, after the last the last one
+        stretch = np.clip(k, 0, max(len(scales) - 1, 0))
+        s_arr = np.array(scales if scales else [1.0])[stretch]
+        before_first = t < ts[0]
+        base = np.where(before_first, 0, k)
+        ch[:] = cs[base] + s_arr * (d - ds[base])
+        sc[:] = s_arr
+    rs = []
+    for (j, tb, cb), jump in zip(resets, jumps):
+        rs.append({"t_s": tb, "balise_m": cb, "position_before_m": float(pos[j - 1]) if j else float("nan"),
+                   "jump_m": jump, "action": "corrected"})
+        events.append(QCEvent("odometry_reset", "*", tb, tb,
+                              f"balise at {cb:.2f} m: odometer jump {jump:+.3f} m corrected "
+                              f"(scale distributed over the stretch before)", "corrected", cb, cb))
+    speed = odo.speed * sc
+    moving = np.abs(speed) > 0.5
+    if travel_sign < 0 and moving.any() and np.median(speed[moving]) < 0:
+        speed = -speed  # a speed channel signed along chainage: make it positive along the direction of travel
+    return OdometryTrack(t=t.copy(), chainage=ch, speed=speed, scale=sc, resets=tuple(rs), events=tuple(events),
+                         travel_sign=int(travel_sign), untrusted=tuple(untrusted))
+
+
+_SERIES = (1.0, 2.0, 2.5, 5.0)
+
+
+
+def nice_step(limit: float) -> float:
+    """Largest value of the 1–2–2.5–5 × 10ⁿ series not above ``limit`` (> 0)."""
+    if not (limit > 0 and math.isfinite(limit)):
+        raise ValueError(f"step limit must be a positive number, got {limit!r}")
+    e = math.floor(math.log10(limit))
+    best = 0.0
+    for k in (e - 1, e):
+        for m in _SERIES:
+            v = m * 10.0**k
+            if v <= limit * (1 + 1e-12):
+                best = max(best, v)
+    return best
+
+
+def spatial_step(speed_gate_m_s: float, f_hi_hz: float, samples_per_wavelength: float = 3.0) -> tuple[float, float]:
+    """(spatial step [m], shortest resolved wavelength [m]) for a run (module docstring)."""
+    lam_min = speed_gate_m_s / f_hi_hz
+    return nice_step(lam_min / samples_per_wavelength), lam_min

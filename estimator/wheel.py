@@ -1,0 +1,260 @@
+"""Wheel roughness separated from rail roughness: angle-domain resampling and a comb at the rotation orders.
+
+The irregularity at a wheel is the rail's roughness plus the wheel's own
+(thesis §2.2, Fig. 2.3). The wheel's part is periodic in the rolling angle;
+the rail's is not (Carrigan & Talbot). With the profile resampled to a fixed
+number ``N`` of samples per wheel revolution (a spatial step ``C/N``, ``C``
+the rolling circumference), the wheel's roughness is a function of the
+sample's position within the revolution.
+
+**Circumference.** The nominal radius and the odometer give ``C`` to a few
+tenths of a per cent; the comb needs it to ~0.01 %. :func:`circumference`
+maximises ``J(C) = Σ_m R(mC)``, the normalised autocorrelation of the
+(mask-weighted) irregularity summed at the first ``K`` multiples of ``C`` —
+the power of the synchronous average — over ``C_nom (1 ± search)``.
+
+**Comb (notch at every rotation order).** :func:`comb` estimates the
+periodic part at each revolution as the mask-weighted average of the same
+angle over the neighbouring revolutions, with triangular weights
+``R + 1 − |m|`` over ``±R`` revolutions and the revolution itself left out,
+and subtracts it. This is a
+zero-phase comb filter: its response is ``1 − Σ_{m≠0} w_m e^{i2πνm}`` at
+``ν`` cycles per revolution — exactly 0 at every order, 1 on average between
+orders (no broadband bias, because the current revolution is excluded), with
+notches about ``1/R`` order wide. The thesis uses a 4th-order zero-phase
+Butterworth notch comb; a moving synchronous average is used here because
+it honours the quality-control mask (a gap simply has no weight) and, for a
+wheel whose radius changes slightly through a curve, follows the slowly
+drifting phase.
+
+**Wheel roughness and polygon orders.** :func:`wheel_roughness` averages every
+valid revolution (the synchronous average) and decomposes it into orders:
+amplitude per order with the floor the rail's random roughness leaves in an
+average of ``n`` revolutions (``σ_order/√n``, from the revolution-to-
+revolution scatter); orders above 4× their floor are the polygon orders.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+from scipy import fft as sfft
+
+from estimator.inversion import cubic_sample
+
+#: robust z-score (peak minus median over the median absolute deviation) a circumference peak must reach
+MIN_SIGNIFICANCE = 10.0
+#: highest wheel order reported
+MAX_ORDER = 100
+
+__all__ = ["circumference", "comb", "comb_response", "wheel_roughness", "WheelRoughness", "CircumferenceFit"]
+
+
+@dataclass(frozen=True)
+class CircumferenceFit:
+    """Rolling circumference found by :func:`circumference` and how clearly it stands out."""
+
+    circumference_m: float
+    nominal_m: float
+    significance: float
+    revolutions: int
+
+    @property
+    def radius_m(self) -> float:
+        return self.circumference_m / (2 * math.pi)
+
+    @property
+    def found(self) -> bool:
+        """The peak stands out of the search's spread by at least :data:`MIN_SIGNIFICANCE` (robust z-score)."""
+        return self.significance >= MIN_SIGNIFICANCE
+
+
+def _lowpass(x: np.ndarray, dx: float, shortest_m: float) -> np.ndarray:
+    X = sfft.rfft(x, axis=-1)
+    k = sfft.rfftfreq(x.shape[-1], dx)
+    X[..., k > 1.0 / shortest_m] = 0
+    return sfft.irfft(X, n=x.shape[-1], axis=-1)
+
+
+def circumference(profile: np.ndarray, dx: float, nominal_m: float, *, search: float = 0.015,
+                  shortest_m: float = 0.02, max_multiples: int = 100) -> CircumferenceFit:
+    """Rolling circumference from the periodicity of a wheelset's irregularity (module docstring).
+
+    Parameters
+    ----------
+    profile : ndarray (n_sides, M)
+        Irregularity on a uniform chainage grid of step ``dx`` (NaN = masked).
+    dx : float
+        Grid step [m].
+    nominal_m : float
+        Circumference from the nominal radius [m].
+    search : float
+        Relative half-width of the search.
+    shortest_m : float
+        Shortest wavelength kept for the autocorrelation [m].
+    """
+    p = np.atleast_2d(profile)
+    w = np.isfinite(p).astype(float)
+    x = np.where(w > 0, p, 0.0)
+    x = _lowpass(x - (x.sum(axis=1, keepdims=True) / np.maximum(w.sum(axis=1, keepdims=True), 1)) * w,
+                 dx, max(shortest_m, 4 * dx)) * w
+    n = x.shape[1]
+    nfft = sfft.next_fast_len(2 * n)
+    X, W = sfft.rfft(x, nfft, axis=1), sfft.rfft(w, nfft, axis=1)
+    num = sfft.irfft(np.abs(X) ** 2, nfft, axis=1).sum(axis=0)[:n]
+    den = sfft.irfft(np.abs(W) ** 2, nfft, axis=1).sum(axis=0)[:n]
+    var = num[0] / max(den[0], 1.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        R = np.where(den > 0.2 * den[0], num / den, 0.0) / max(var, np.finfo(float).tiny)
+    valid_len = w.any(axis=0).sum() * dx
+    K = int(max(1, min(max_multiples, math.floor(0.5 * valid_len / nominal_m))))
+    step = 0.1 / (K * nominal_m / max(shortest_m, 4 * dx))  # a tenth of the peak width of the highest order kept
+    rel = np.arange(-search, search + step / 2, step)
+    cands = nominal_m * (1 + rel)
+    m = np.arange(1, K + 1)
+    lags = (cands[:, None] * m[None, :]) / dx
+    J = cubic_sample(R[None, :], lags.ravel()).reshape(lags.shape)
+    J = np.nansum(J, axis=1)
+    best = int(np.argmax(J))
+    med = float(np.median(J))
+    mad = float(np.median(np.abs(J - med))) * 1.4826
+    sig = (J[best] - med) / mad if mad > 0 else 0.0
+    return CircumferenceFit(float(cands[best]), float(nominal_m), float(sig), K)
+
+
+def _weights(R: int) -> np.ndarray:
+    """Triangular weights ``R + 1 − |m|`` over ``|m| ≤ R``, the revolution itself (m = 0) left out."""
+    m = np.arange(-R, R + 1)
+    w = (R + 1 - np.abs(m)).astype(float)
+    w[R] = 0.0  # the revolution itself is left out: no broadband bias
+    return w
+
+
+def comb_response(nu: np.ndarray, R: int) -> np.ndarray:
+    """Amplitude response of :func:`comb` (no gaps) at ``nu`` cycles per revolution."""
+    w = _weights(R)
+    m = np.arange(-R, R + 1)
+    return np.abs(1 - (w[None, :] * np.exp(2j * np.pi * np.asarray(nu)[:, None] * m[None, :])).sum(axis=1) / w.sum())
+
+
+def _triangle(X: np.ndarray, R: int) -> np.ndarray:
+    """``Σ_{|m|≤R} (R+1−|m|) X[i+m]`` along axis 1 (zero beyond the ends): two box sums by cumulative sums."""
+    n = X.shape[1]
+    pad = [(0, 0)] * X.ndim
+    pad[1] = (R, R)
+    Xp = np.pad(X, pad)  # index j of Xp is X[j - R]
+    c = np.zeros((X.shape[0], Xp.shape[1] + 1) + X.shape[2:])
+    np.cumsum(Xp, axis=1, out=c[:, 1:])
+    # Y[j] = Σ_{b=0}^{R} X[j + b] for j = -R .. n-1 (stored at j + R)
+    Y = c[:, R + 1:R + 1 + n + R] - c[:, :n + R]
+    d = np.zeros((X.shape[0], n + R + 1) + X.shape[2:])
+    np.cumsum(Y, axis=1, out=d[:, 1:])
+    # Z[i] = Σ_{j=i-R}^{i} Y[j]  (Y index j stored at j + R)
+    return d[:, R + 1:R + 1 + n] - d[:, :n]
+
+
+def _by_revolution(x: np.ndarray, n_per_rev: int) -> tuple[np.ndarray, int]:
+    m = x.shape[-1]
+    n_rev = -(-m // n_per_rev)
+    pad = n_rev * n_per_rev - m
+    xp = np.concatenate([x, np.full(x.shape[:-1] + (pad,), np.nan)], axis=-1)
+    return xp.reshape(x.shape[:-1] + (n_rev, n_per_rev)), m
+
+
+def comb(profile: np.ndarray, n_per_rev: int, revolutions: int) -> tuple[np.ndarray, np.ndarray]:
+    """Rail part and periodic (wheel) part of an irregularity on a grid of ``n_per_rev`` samples per revolution.
+
+    Parameters
+    ----------
+    profile : ndarray (n_sides, M)
+        Irregularity, NaN where masked; sample 0 is angle 0.
+    n_per_rev : int
+    revolutions : int
+        ``R``: neighbouring revolutions on each side in the moving synchronous average.
+
+    Returns
+    -------
+    rail, periodic : ndarray (n_sides, M)
+        ``rail = profile − periodic`` (NaN where ``profile`` is); ``periodic`` is
+        the wheel's estimate at each sample (NaN where no neighbour is valid).
+    """
+    p = np.atleast_2d(profile)
+    X, m = _by_revolution(p, n_per_rev)  # (n_sides, n_rev, N)
+    valid = np.isfinite(X)
+    Xz = np.where(valid, X, 0.0)
+    R = int(revolutions)
+    num = _triangle(Xz, R) - (R + 1) * Xz
+    den = _triangle(valid.astype(float), R) - (R + 1) * valid
+    with np.errstate(invalid="ignore", divide="ignore"):
+        per = np.where(den > 0.05 * R * (R + 1), num / den, np.nan)
+    per = per.reshape(p.shape[0], -1)[:, :m]
+    rail = p - np.where(np.isfinite(per), per, 0.0)
+    return rail, per
+
+
+@dataclass(frozen=True, eq=False)
+class WheelRoughness:
+    """Synchronous average of one wheelset's irregularity per wheel and its orders.
+
+    Attributes
+    ----------
+    sides : tuple of str
+        Vehicle sides (wheels) of ``profile``.
+    angle_rad : ndarray (N,)
+    profile : ndarray (n_sides, N)
+        Wheel roughness [m] over one revolution (angle 0 = the run's first grid point).
+    orders : pandas.DataFrame
+        ``side, order, amplitude_m, phase_rad, floor_m, significant``.
+    revolutions : int
+        Valid revolutions averaged.
+    circumference_m : float
+    """
+
+    sides: tuple[str, ...]
+    angle_rad: np.ndarray
+    profile: np.ndarray
+    orders: pd.DataFrame
+    revolutions: int
+    circumference_m: float
+
+    def polygon(self, side: str) -> pd.DataFrame:
+        """Significant orders of one wheel, largest first."""
+        o = self.orders
+        return o[(o["side"] == side) & o["significant"]].sort_values("amplitude_m", ascending=False)
+
+
+def wheel_roughness(profile: np.ndarray, n_per_rev: int, sides: tuple[str, ...], circumference_m: float,
+                    max_order: int | None = MAX_ORDER, floor_factor: float = 4.0) -> WheelRoughness:
+    """Synchronous average over every valid revolution and its order decomposition (module docstring).
+
+    Only revolutions without any masked sample are averaged (a partial one
+    would bias its orders).
+    """
+    X, _ = _by_revolution(np.atleast_2d(profile), n_per_rev)
+    full = np.isfinite(X).all(axis=2)  # (n_sides, n_rev)
+    n_sides = X.shape[0]
+    prof = np.full((n_sides, n_per_rev), np.nan)
+    rows = []
+    kmax = n_per_rev // 2 if max_order is None else min(max_order, n_per_rev // 2)
+    n_used = 0
+    for i in range(n_sides):
+        revs = X[i][full[i]]
+        n = revs.shape[0]
+        n_used = max(n_used, n)
+        if n < 2:
+            continue
+        revs = revs - revs.mean(axis=1, keepdims=True)
+        F = sfft.rfft(revs, axis=1) * 2 / n_per_rev  # one-sided amplitude per order, per revolution
+        mean = F.mean(axis=0)
+        floor = np.sqrt(np.mean(np.abs(F - mean) ** 2, axis=0) / n)
+        prof[i] = revs.mean(axis=0)
+        for k in range(1, kmax + 1):
+            rows.append({"side": sides[i], "order": k, "amplitude_m": float(abs(mean[k])),
+                         "phase_rad": float(np.angle(mean[k])), "floor_m": float(floor[k]),
+                         "significant": bool(abs(mean[k]) > floor_factor * floor[k])})
+    orders = pd.DataFrame(rows, columns=["side", "order", "amplitude_m", "phase_rad", "floor_m", "significant"])
+    return WheelRoughness(tuple(sides), 2 * np.pi * np.arange(n_per_rev) / n_per_rev, prof, orders, int(n_used),
+                          float(circumference_m))

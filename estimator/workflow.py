@@ -1,0 +1,586 @@
+"""The field estimate of one run, as a library workflow (thesis Fig. 2.3): read → QC → invert → space → indexes.
+
+:func:`prepare` builds a :class:`FieldModel` once per wheelset model, sensor
+table, line and options (the transfer functions are computed on first use
+and memoised, so a fleet's runs share them); :func:`estimate_run` turns one
+run into a :class:`~estimator.results.FieldEstimate`:
+
+1. read the run (:func:`estimator.io.read_run`), sensitivities applied once;
+2. direction and orientation → leading wheelset, rail of each vehicle side
+   (:func:`estimator.orientation.orientation`);
+3. continuous chainage from the odometer, balise resets handled
+   (:func:`estimator.spatial.odometry_track`);
+4. quality control, every finding masked and logged (:func:`estimator.qc.check_run`);
+5. per wheelset and model, the accelerations are inverted through the
+   regularised transfer functions of :mod:`estimator.inversion` — per
+   trackform section of the line and per contact-angle class (tangent track,
+   each curve), blended along the curve transitions;
+6. wheelbase: given, or measured by cross-correlating the leading and
+   trailing wheelsets' (whitened) estimates of the same rails (they see the
+   same roughness ``a`` apart); then, with ``bogie_coupling``, each
+   wheelset is inverted again with the rail deflection the other wheelset's
+   contact forces cause under it (:func:`estimator.inversion.rail_coupling`);
+7. rolling circumference per wheelset (:func:`estimator.wheel.circumference`),
+   then each wheelset's irregularity is read on a grid of ``N`` samples per
+   revolution (step ≤ ``λ_min/3``, :func:`estimator.spatial.spatial_step`);
+8. comb filter at the rotation orders → rail roughness and wheel roughness
+   with its polygon orders (:mod:`estimator.wheel`); contact filter undone
+   (:mod:`estimator.contact_filter`);
+9. EN 13231-3 band indexes where the speed lets the inversion band cover the
+   band, exceedance shares; EN 15610 spectra per stretch (line sections and
+   curves) with the ISO 3095 limit; corrugation type (:mod:`estimator.corrugation`).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+import pandas as pd
+from scipy import fft as sfft
+
+from estimator.config import EstimatorConfig
+from estimator.contact_angles import CurvingModel, contact_angles
+from estimator.contact_filter import contact_gain
+from estimator.corrugation import MIN_PROMINENCE_DB, classify, model_resonances, spectral_peak
+from estimator.errors import ChannelError, ConfigurationError, NoValidDataError
+from estimator.inversion import (TimeIrregularity, _log_smooth_rms, condition_by_band, invert, model_channels,
+                                 rail_coupling, sample_many, wheelset_transfer)
+from estimator.io import LineDescription, read_line, read_run
+from estimator.io.sensors import check_sensors, read_sensors
+from estimator.orientation import Orientation, orientation
+from estimator.qc import check_run
+from estimator.results import FieldEstimate, ProfileEstimate
+from estimator.run import Run
+from estimator.spatial import OdometryTrack, nice_step, odometry_track, spatial_step
+from estimator.standards.en13231 import band_indexes, exceedance
+from estimator.standards.en15610 import roughness_spectrum
+from estimator.wheel import CircumferenceFit, circumference, comb, wheel_roughness
+from receptance.track import track_frf
+from receptance.trackform import Trackform
+
+__all__ = ["FieldModel", "prepare", "in_service", "estimate_run", "transfer_classes", "WHEELBASE_RANGE_M",
+           "WHEELBASE_MIN_CORRELATION"]
+
+log = logging.getLogger("estimator")
+
+#: range searched for the wheelbase when it is measured from the data [m]
+WHEELBASE_RANGE_M = (1.2, 4.0)
+#: smallest normalised correlation between the two wheelsets' estimates for a measured wheelbase
+WHEELBASE_MIN_CORRELATION = 0.3
+_PRIMARY = ("vertical_lateral", "vertical", "half")
+#: grid step of the circumference search [m] (the wheel's orders with wavelengths >= 20 mm)
+CIRCUMFERENCE_STEP_M = 0.005
+
+
+@dataclass(frozen=True, eq=False)
+class FieldModel:
+    """A wheelset model prepared for field estimates with one sensor table, line and set of options.
+
+    Transfer functions are computed on first use for each (model, wheelset,
+    trackform, contact angles) and memoised in ``cache`` (a dictionary the
+    object owns), so that many runs share them.
+    """
+
+    model: object
+    sensors: pd.DataFrame
+    line: LineDescription | None
+    trackform: Trackform | None
+    config: EstimatorConfig
+    contact_stiffness: float
+    semi_axis_m: float
+    curving: CurvingModel = CurvingModel()
+    cache: dict = field(default_factory=dict, repr=False)
+
+    def trackforms(self) -> list[tuple[float, float, Trackform]]:
+        """Trackform sections ``(from, to, Trackform)``; an explicit trackform applies everywhere."""
+        if self.trackform is not None or self.line is None:
+            return []
+        return [(t.from_m, t.to_m, t.trackform) for t in self.line.trackforms if t.trackform is not None]
+
+    def default_trackform(self) -> Trackform:
+        return self.trackform if self.trackform is not None else Trackform()
+
+    def _track(self, tf_index: int, fs: float):
+        key = ("track", tf_index, fs)
+        if key not in self.cache:
+            df = self.config.transfer_df_hz
+            f = df * np.arange(1, int(np.floor(0.5 * fs / df)) + 1)
+            tf = self.default_trackform() if tf_index < 0 else self.trackforms()[tf_index][2]
+            self.cache[key] = track_frf(f, tf, supports=self.config.trackform_supports)
+        return self.cache[key]
+
+    def transfer(self, kind: str, channels: pd.DataFrame, fs: float, tf_index: int, theta: tuple[float, float]):
+        """Memoised :func:`estimator.inversion.wheelset_transfer`."""
+        th = (0.0, 0.0) if kind != "vertical_lateral" else (round(theta[0], 5), round(theta[1], 5))
+        key = ("T", kind, tuple(channels["name"]), fs, tf_index, th)
+        if key not in self.cache:
+            lo, hi = self.config.f_lo_hz, self.config.f_hi(fs)
+            self.cache[key] = wheelset_transfer(self.model, channels, kind, fs, f_lo=lo, f_hi=hi,
+                                                alpha=self.config.regularisation, df=self.config.transfer_df_hz,
+                                                track=self._track(tf_index, fs),
+                                                contact_stiffness=self.contact_stiffness, theta=th)
+        return self.cache[key]
+
+    def coupling(self, tr, tr_other, tf_index: int, distance_m: float) -> np.ndarray:
+        """Memoised :func:`estimator.inversion.rail_coupling` on the transfer grid of ``tr``."""
+        key = ("C", tf_index, round(float(distance_m), 4), tr.sides, tr_other.sides, tr.theta, tr_other.theta,
+               tr.freqs_hz.size)
+        if key not in self.cache:
+            tf = self.default_trackform() if tf_index < 0 else self.trackforms()[tf_index][2]
+            self.cache[key] = rail_coupling(tr.freqs_hz, tf, distance_m, tr.sides, tr_other.sides, tr.theta,
+                                            tr_other.theta)
+        return self.cache[key]
+
+    def resonances(self, tf_index: int = -1):
+        key = ("res", tf_index)
+        if key not in self.cache:
+            tf = self.default_trackform() if tf_index < 0 else self.trackforms()[tf_index][2]
+            self.cache[key] = model_resonances(self.model, tf, self.contact_stiffness)
+        return self.cache[key]
+
+
+def in_service(model):
+    """The wheelset as it runs: a lab model (free-free, with the test's artefacts) gets its test artefacts
+    removed (:meth:`ModalModel.for_service`) and the primary suspension added; a model that already has a
+    primary suspension (``railmodal model build``) is used as it is."""
+    kinds = [getattr(mod, "kind", "") for mod in getattr(model, "modifications", ())]
+    if not hasattr(model, "with_modification") or "primary_suspension" in kinds:
+        return model
+    from receptance.modification import PrimarySuspension
+
+    if hasattr(model, "for_service"):
+        model = model.for_service()
+    log.info("model %s has no primary suspension: test artefacts removed and the primary suspension added "
+             "(thesis Table 2.1) for the wheelset in service", getattr(model, "name", ""))
+    return model.with_modification(PrimarySuspension())
+
+
+def prepare(model, sensors, *, line=None, trackform: Trackform | None = None,
+            config: EstimatorConfig | None = None) -> FieldModel:
+    """A :class:`FieldModel` from a wheelset model (ModalModel or a ``hybrid_model.npz`` path; made
+    :func:`in_service`), a sensor table (path or DataFrame), an optional line description (path or
+    LineDescription) and options."""
+    from receptance.model_io import load_model
+
+    cfg = config or EstimatorConfig()
+    m = in_service(load_model(model) if isinstance(model, (str, Path)) else model)
+    table = read_sensors(sensors) if isinstance(sensors, (str, Path)) else check_sensors(sensors)
+    ln = read_line(line) if isinstance(line, (str, Path)) else line
+    contact = cfg.contact.contact()
+    return FieldModel(m, table, ln, trackform, cfg, contact.stiffness, contact.semi_axis_x,
+                      CurvingModel(rolling_radius_m=cfg.wheel_radius_m))
+
+
+# --------------------------------------------------------------------------- helpers
+def _chainage_to_time(track: OdometryTrack, offset: float):
+    """Monotone map chainage → time for a wheel ``offset`` ahead of the odometry reference (along chainage)."""
+    c = track.chainage * track.travel_sign
+    mono = np.maximum.accumulate(c)
+    keep = np.concatenate([[True], np.diff(mono) > 0])
+    xs, ts = mono[keep], track.t[keep]
+
+    def t_of(x: np.ndarray) -> np.ndarray:
+        return np.interp((np.asarray(x) - offset) * track.travel_sign, xs, ts, left=np.nan, right=np.nan)
+
+    return t_of
+
+
+def _class_weights(fm: FieldModel, kind: str, chain: np.ndarray, orient: Orientation, role: str | None = None
+                   ) -> list[tuple[int, tuple[float, float], np.ndarray]]:
+    """(trackform index, (θ_L, θ_R) vehicle sides, weight per sample) of every class present.
+
+    ``role`` (``leading``/``trailing``) selects a curve's calibrated angles
+    (``EstimatorConfig.curve_contact_angles``), which take precedence on that curve.
+    """
+    cfg = fm.config
+    tf_idx = np.full(chain.size, -1)
+    for i, (a, b, _) in enumerate(fm.trackforms()):
+        tf_idx[(chain >= a) & (chain <= b)] = i
+    angle_classes: list[tuple[tuple[float, float], np.ndarray]] = []
+    if kind == "vertical_lateral":
+        line = fm.line
+        if line is not None and line.curves:
+            if cfg.contact_angles is not None:
+                tangent = (0.0, 0.0)
+            else:
+                tl, tr = contact_angles(np.zeros(1), orient.side_of_rail, fm.curving)
+                tangent = (float(tl[0]), float(tr[0]))
+            rest = np.ones(chain.size)
+            for c in line.curves:
+                w = c.ramp(chain)
+                if not np.any(w > 0):
+                    continue
+                calibrated = cfg.curve_angles(c.id, role, orient.side_of_rail)
+                if calibrated is not None:
+                    body = calibrated
+                elif cfg.contact_angles is not None:
+                    body = cfg.contact_angles
+                else:
+                    bl, br = contact_angles(np.array([c.sign / c.radius_m]), orient.side_of_rail, fm.curving)
+                    body = (float(bl[0]), float(br[0]))
+                angle_classes.append((body, w))
+                rest = rest - w
+            angle_classes.insert(0, (tangent, np.clip(rest, 0.0, 1.0)))
+        else:
+            angle_classes.append((cfg.contact_angles or (0.0, 0.0), np.ones(chain.size)))
+    else:
+        angle_classes.append(((0.0, 0.0), np.ones(chain.size)))
+    out = []
+    for t in np.unique(tf_idx):
+        ind = (tf_idx == t).astype(float)
+        for th, w in angle_classes:
+            ww = ind * w
+            if np.any(ww > 0):
+                out.append((int(t), th, ww))
+    return out
+
+
+#: public name of the class rule: the field diagnosis (:mod:`estimator.diagnosis`) uses the estimator's own classes
+transfer_classes = _class_weights
+
+
+def _estimate_wheelbase(fm: FieldModel, tis: Mapping, track: OdometryTrack, orient: Orientation, lam_min: float
+                        ) -> tuple[float | None, float]:
+    """Wheelbase [m] from the lag between the two wheelsets' estimates of the same rails (and the correlation)."""
+    kind = next((k for k in ("vertical", "vertical_lateral", "half") if (1, k) in tis and (2, k) in tis), None)
+    if kind is None:
+        return None, 0.0
+    dx = max(lam_min / 2, 0.005)
+    t_of = _chainage_to_time(track, 0.0)
+    lo = np.nanmin(track.chainage)
+    hi = np.nanmax(track.chainage)
+    x = np.arange(lo, hi, dx)
+    ts = t_of(x)
+    prof = {w: tis[(w, kind)].sample(ts) for w in (1, 2)}
+    # ws1 leads ws2 along the front direction: r1(x) = r2(x + f a), f the sign of ws1's offset
+    f = orient.wheelset_offset_sign[1]
+    num = np.zeros(0)
+    norm_total = 0.0
+    n = sfft.next_fast_len(2 * x.size)
+    k = sfft.rfftfreq(n, dx)
+    for side in range(min(prof[1].shape[0], prof[2].shape[0])):
+        a, b = prof[1][side], prof[2][side]
+        wa, wb = np.isfinite(a), np.isfinite(b)
+        a0, b0 = np.where(wa, a - np.nanmean(a), 0.0), np.where(wb, b - np.nanmean(b), 0.0)
+        # whitened (each spectrum over its one-third-octave RMS): a narrow-band corrugation would otherwise give
+        # correlation peaks every wavelength and the lag could land whole wavelengths off
+        A, B = sfft.rfft(a0, n), sfft.rfft(b0, n)
+        for Z in (A, B):  # floor at -60 dB of the peak: what the inversion band left empty stays empty
+            env = _log_smooth_rms(k, np.abs(Z))
+            Z /= np.maximum(env, 1e-3 * env.max() + 1e-300)
+        A[k < 1.0 / WHEELBASE_RANGE_M[0]] = 0.0  # waves longer than the shortest wheelbase searched: no sharp peak
+        B[k < 1.0 / WHEELBASE_RANGE_M[0]] = 0.0
+        a0, b0 = sfft.irfft(A, n)[:x.size] * wa, sfft.irfft(B, n)[:x.size] * wb
+        c = sfft.irfft(sfft.rfft(b0, n) * np.conj(sfft.rfft(a0, n)), n)  # c[l] = Σ a(x) b(x + l)
+        num = c if num.size == 0 else num + c
+        norm_total += math.sqrt(float(np.sum(a0 ** 2) * np.sum(b0 ** 2)))
+    lags = np.arange(num.size)
+    lags = np.where(lags > num.size // 2, lags - num.size, lags) * dx
+    sel = (f * lags >= WHEELBASE_RANGE_M[0]) & (f * lags <= WHEELBASE_RANGE_M[1])
+    if not sel.any():
+        return None, 0.0
+    idx = np.flatnonzero(sel)
+    k = idx[int(np.argmax(num[idx]))]
+    peak = num[k]
+    # parabolic refinement
+    if 0 < k < num.size - 1:
+        y0, y1, y2 = num[k - 1], num[k], num[k + 1]
+        den = y0 - 2 * y1 + y2
+        off = 0.5 * (y0 - y2) / den if den != 0 else 0.0
+    else:
+        off = 0.0
+    a_est = abs(lags[k] + off * dx)
+    return a_est, float(peak / norm_total) if norm_total > 0 else 0.0
+
+
+def _grid(track: OdometryTrack, offset: float, dx: float) -> np.ndarray:
+    c = track.chainage + offset
+    lo, hi = float(np.nanmin(c)), float(np.nanmax(c))
+    x0 = math.ceil(lo / dx) * dx
+    return x0 + dx * np.arange(int(math.floor((hi - x0) / dx)) + 1)
+
+
+def _stretches(fm: FieldModel, lo: float, hi: float) -> list[tuple[str, float, float]]:
+    """Stretches for spectra and indexes: the line's sections and curves (or fixed lengths) inside [lo, hi]."""
+    out = []
+    if fm.line is not None:
+        for s in fm.line.sections:
+            if s.to_m > lo and s.from_m < hi:
+                out.append((f"section {s.id}", max(s.from_m, lo), min(s.to_m, hi)))
+        for c in fm.line.curves:
+            if c.to_m > lo and c.from_m < hi:
+                a, b = c.from_m + c.transition_in_m, c.to_m - c.transition_out_m
+                out.append((f"curve {c.id}", max(a, lo), min(b, hi)))
+    if not out:
+        L = fm.config.section_length_m
+        a = math.floor(lo / L) * L
+        while a < hi:
+            out.append((f"{a:g}-{a + L:g} m", max(a, lo), min(a + L, hi)))
+            a += L
+    return out
+
+
+# --------------------------------------------------------------------------- the workflow
+def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, format: str | None = None
+                 ) -> FieldEstimate:
+    """Estimate rail roughness per rail from one run (module docstring).
+
+    Parameters
+    ----------
+    run : Run or str or Path
+        A run (sensitivities applied) or a run file read with the field model's sensor table.
+    field_model : FieldModel
+        From :func:`prepare`.
+    direction : {"forward", "backward"}, optional
+        Override the header's direction of travel.
+    format : str, optional
+        Run-file format when ``run`` is a path.
+
+    Returns
+    -------
+    FieldEstimate
+
+    Raises
+    ------
+    RunFileError, ChannelError, OdometryError, NoValidDataError, ConfigurationError
+    """
+    fm = field_model
+    cfg = fm.config
+    timings: dict[str, float] = {}
+    t_start = time.perf_counter()
+    if not isinstance(run, Run):
+        run = read_run(run, fm.sensors, format, direction=direction)
+    elif direction is not None:
+        run = run.with_direction(direction)
+    if not run.sensitivity_applied:
+        run = run.apply_sensitivities()
+    orient = orientation(run.header.direction, run.header.orientation)
+    track = odometry_track(run.odometry, orient.travel_sign, max_scale_error=cfg.max_scale_error, source=run.source)
+    run = check_run(run, track, cfg)
+    timings["read_qc"] = time.perf_counter() - t_start
+    fs = run.fs
+    f_lo, f_hi = cfg.f_lo_hz, cfg.f_hi(fs)
+    dx_target, lam_min = spatial_step(cfg.speed_gate_m_s, f_hi)
+    steps = [f"orientation: {orient.direction}/{orient.orientation}, leading wheelset {orient.leading}, vehicle "
+             f"L on rail {orient.rail_of_side['L']}",
+             f"chainage from the odometer: {len(track.resets)} balise reset(s) corrected, "
+             f"{len(track.untrusted)} stretch(es) not trusted"]
+    t_run = run.t
+    wb_guess = cfg.wheelbase_m or 2.5
+    # ---- inversion per wheelset and model
+    t0 = time.perf_counter()
+    tis: dict[tuple[int, str], TimeIrregularity] = {}
+    conditioning: dict[tuple[int, str], pd.DataFrame] = {}
+    skipped: list[str] = []
+    plans_by_w: dict[int, list] = {}
+    edges: dict[int, float] = {}
+    for w in run.wheelsets:
+        chans = run.wheelset_channels(w)
+        chain_w = track.chainage_at(t_run) + orient.wheelset_offset_sign[w] * wb_guess / 2
+        plans = []
+        for kind in cfg.models:
+            try:
+                rows, _ = model_channels(kind, chans)
+            except ChannelError as exc:
+                skipped.append(f"wheelset {w}, {kind}: {exc}")
+                log.warning("%s: wheelset %d, model %s not estimated: %s", run.source, w, kind, exc)
+                continue
+            sub = chans.loc[rows].reset_index(drop=True)
+            classes = _class_weights(fm, kind, chain_w, orient, orient.role(w))
+            transfers = [fm.transfer(kind, sub.drop(columns="row"), fs, t, th) for t, th, _ in classes]
+            plans.append((kind, sub, classes, transfers))
+        # one edge per wheelset: its models then share their valid stretches (and one time -> space interpolation)
+        edge_w = max((tr.edge_s for *_, trs in plans for tr in trs), default=0.0)
+        plans_by_w[w], edges[w] = plans, edge_w
+        for kind, sub, classes, transfers in plans:
+            idx = sub["row"].to_numpy(int)
+            valid = ~run.mask.masked[idx].any(axis=0)
+            ti = invert(run.acceleration[idx], run.t0, fs, valid, transfers, [c[2] for c in classes], edge_s=edge_w)
+            if ti.valid_time <= 0:
+                skipped.append(f"wheelset {w}, {kind}: no valid stretch long enough after quality control")
+                continue
+            tis[(w, kind)] = ti
+            conds = []
+            for (t, th, _), tr in zip(classes, transfers):
+                conds.append(condition_by_band(tr).assign(trackform=t, theta_L_deg=math.degrees(th[0]),
+                                                          theta_R_deg=math.degrees(th[1])))
+            conditioning[(w, kind)] = pd.concat(conds, ignore_index=True)
+    if not tis:
+        raise NoValidDataError(f"{run.source}: nothing could be estimated ({'; '.join(skipped) or 'every sample masked'};"
+                               f" masked share {100 * run.masked_share['run']:.0f} %)")
+    timings["inversion"] = time.perf_counter() - t0
+    steps.append(f"inverted {len(tis)} wheelset/model combination(s) in {f_lo:g}-{f_hi:g} Hz "
+                 f"(Tikhonov alpha {cfg.regularisation:g})")
+    # ---- wheelbase
+    t0 = time.perf_counter()
+    if cfg.wheelbase_m is not None:
+        wb, wb_src = cfg.wheelbase_m, "given"
+    else:
+        est, contrast = _estimate_wheelbase(fm, tis, track, orient, lam_min)
+        if est is None or contrast < WHEELBASE_MIN_CORRELATION:
+            if len(run.wheelsets) > 1:
+                raise ConfigurationError(
+                    f"{run.source}: the wheelbase could not be measured from the data (lead/trail correlation "
+                    f"{contrast:.2f} < {WHEELBASE_MIN_CORRELATION}); give it (wheelbase_m / --wheelbase)")
+            raise ConfigurationError(f"{run.source}: one instrumented wheelset: give the wheelbase (wheelbase_m / "
+                                     "--wheelbase) to place it along chainage")
+        wb, wb_src = est, f"measured (lead/trail cross-correlation {contrast:.2f})"
+    steps.append(f"wheelbase {wb:.3f} m ({wb_src})")
+    timings["wheelbase"] = time.perf_counter() - t0
+    # ---- the rail couples the bogie's two wheelsets: each inversion again with the other's contact forces
+    if cfg.bogie_coupling and len(plans_by_w) == 2:
+        t0 = time.perf_counter()
+        coupled = []
+        for w, wo in ((1, 2), (2, 1)):
+            other = {kind: sub for kind, sub, _, _ in plans_by_w.get(wo, [])}
+            for kind, sub, classes, transfers in plans_by_w.get(w, []):
+                if (w, kind) not in tis or (wo, kind) not in tis:
+                    continue
+                sub_o = other[kind]
+                trs_o = [fm.transfer(kind, sub_o.drop(columns="row"), fs, t, th) for t, th, _ in classes]
+                cps = [fm.coupling(tr, tro, t, wb) for (t, _, _), tr, tro in zip(classes, transfers, trs_o)]
+                idx, idx_o = sub["row"].to_numpy(int), sub_o["row"].to_numpy(int)
+                ti = invert(run.acceleration[idx], run.t0, fs, ~run.mask.masked[idx].any(axis=0), transfers,
+                            [c[2] for c in classes], edge_s=max(edges.values()),
+                            coupled=(run.acceleration[idx_o], ~run.mask.masked[idx_o].any(axis=0), trs_o, cps))
+                if ti.valid_time > 0:
+                    tis[(w, kind)] = ti
+                    coupled.append(f"{w}/{kind}")
+        steps.append(f"rail coupling of the two wheelsets {wb:.3f} m apart (Timoshenko rail transfer receptance) "
+                     f"added for {', '.join(coupled) or 'none'}")
+        timings["coupling"] = time.perf_counter() - t0
+    # ---- space, comb, indexes per wheelset
+    t0 = time.perf_counter()
+    profiles: dict[tuple[int, str], ProfileEstimate] = {}
+    circ: dict[int, CircumferenceFit] = {}
+    dx_used: dict[int, float] = {}
+    bands = cfg.bands_mm
+    windows = [cfg.window_m(b) for b in bands]
+    c_nom = 2 * math.pi * cfg.wheel_radius_m * float(np.median(track.scale))
+    for w in sorted({w for w, _ in tis}):
+        offset = orient.wheelset_offset_sign[w] * wb / 2
+        t_of = _chainage_to_time(track, offset)
+        primary = next(k for k in _PRIMARY if (w, k) in tis)
+        dx_c = nice_step(max(dx_target, CIRCUMFERENCE_STEP_M))  # orders up to ~500 need no finer grid
+        x_nom = _grid(track, offset, dx_c)
+        prof_nom = tis[(w, primary)].sample(t_of(x_nom))
+        fit = circumference(prof_nom, dx_c, c_nom, search=cfg.radius_search)
+        if not fit.found:
+            log.info("%s: wheelset %d: no clear wheel periodicity (significance %.1f); circumference from the "
+                     "odometer %.4f m", run.source, w, fit.significance, c_nom)
+            fit = CircumferenceFit(c_nom, c_nom, fit.significance, fit.revolutions)
+        circ[w] = fit
+        n_rev = int(math.ceil(fit.circumference_m / dx_target))
+        dx = fit.circumference_m / n_rev
+        dx_used[w] = dx
+        x = _grid(track, offset, dx)
+        tx = t_of(x)
+        v = track.speed_at(np.where(np.isfinite(tx), tx, track.t[0]))
+        v = np.where(np.isfinite(tx), v, np.nan)
+        resolved = np.stack([(v <= b[0] * 1e-3 * f_hi) & (v >= b[1] * 1e-3 * f_lo) for b in bands])
+        kinds = [k for k in cfg.models if (w, k) in tis]
+        sampled = dict(zip(kinds, sample_many([tis[(w, k)] for k in kinds], tx)))
+        for kind in kinds:
+            ti = tis[(w, kind)]
+            irr_sides = sampled[kind]  # rows: vehicle sides of ti.sides
+            rails = tuple(orient.rail_of_side[s] for s in ti.sides)
+            rail_part, _ = comb(irr_sides, n_rev, cfg.comb_revolutions)
+            wheel = wheel_roughness(irr_sides, n_rev, ti.sides, fit.circumference_m)
+            # one spectrum of the rail part serves the contact-filter correction and every EN band
+            bad = ~np.isfinite(rail_part)
+            nfft = sfft.next_fast_len(x.size + int(math.ceil(2 * max(b[1] for b in bands) * 1e-3 / dx)))
+            # single precision is ample for filtering (relative 1e-7 against dB-level results) and halves the cost
+            P = sfft.rfft(np.where(bad, 0.0, rail_part).astype(np.float32), nfft, axis=-1)
+            if cfg.contact_filter:
+                P *= contact_gain(sfft.rfftfreq(nfft, dx), fm.semi_axis_m).astype(np.float32)
+            rail = sfft.irfft(P, nfft, axis=-1)[:, :x.size].astype(float)
+            rail[bad] = np.nan
+            idx = band_indexes(rail, dx, bands, windows, resolved[:, None, :], spectrum=(P, nfft))
+            profiles[(w, kind)] = ProfileEstimate(w, orient.role(w), kind, rails, x, dx, irr_sides, rail, v, idx,
+                                                  resolved, wheel, conditioning[(w, kind)])
+    timings["space_comb_indexes"] = time.perf_counter() - t0
+    steps.append("time -> chainage at " + ", ".join(f"wheelset {w}: dx {1e3 * d:.2f} mm, circumference "
+                                                     f"{circ[w].circumference_m:.4f} m" for w, d in dx_used.items())
+                 + f"; shortest resolved wavelength {1e3 * lam_min:.1f} mm")
+    # ---- tables: indexes, spectra, corrugation
+    t0 = time.perf_counter()
+    all_x = np.concatenate([p.chainage_m for p in profiles.values()])
+    stretches = _stretches(fm, float(np.nanmin(all_x)), float(np.nanmax(all_x)))
+    index_rows, spec_rows, corr_rows = [], [], []
+    resonances = fm.resonances()
+    for (w, kind), p in profiles.items():
+        for name, a, b in [("run", -math.inf, math.inf)] + stretches:
+            i0, i1 = np.searchsorted(p.chainage_m, [a, b], side="left")
+            sel = slice(int(i0), int(i1))
+            if i1 <= i0:
+                continue
+            for i, rail in enumerate(p.rails):
+                for bi, band in enumerate(bands):
+                    # pk-pk is smooth over its window: statistics on the band's own (decimated) grid
+                    d = p.indexes.decimation[bi] if p.indexes.decimation else 1
+                    pk = p.indexes.pk_pk[bi, i, sel][::d]
+                    ok = np.isfinite(pk)
+                    index_rows.append({
+                        "wheelset": w, "role": p.role, "model": kind, "stretch": name, "rail": rail,
+                        "band_mm": f"{band[0]:g}-{band[1]:g}", "window_m": windows[bi],
+                        "valid_share": float(ok.mean()) if ok.size else 0.0,
+                        "median_pk_pk_um": float(np.median(pk[ok]) * 1e6) if ok.any() else math.nan,
+                        "max_pk_pk_um": float(np.max(pk[ok]) * 1e6) if ok.any() else math.nan,
+                        "threshold_um": cfg.thresholds_um[band],
+                        "exceedance_pct": exceedance(pk, cfg.thresholds_um[band] * 1e-6)})
+                if name == "run":
+                    continue
+                vs = p.speed_m_s[sel]
+                vs = vs[np.isfinite(vs) & np.isfinite(p.rail[i, sel])]  # noqa: PLW2901
+                if vs.size == 0:
+                    continue
+                res = (float(vs.max()) / f_hi, float(vs.min()) / f_lo)
+                spec = roughness_spectrum(p.rail[i, sel], p.dx, segment_m=cfg.en15610_segment_m, resolved_m=res)
+                for r in spec.as_rows():
+                    spec_rows.append({"wheelset": w, "role": p.role, "model": kind, "stretch": name, "rail": rail,
+                                      "from_m": a, "to_m": b, "n_segments": spec.n_segments, **r})
+                for bi, band in enumerate(bands):
+                    if band not in ((30.0, 100.0), (100.0, 300.0)):
+                        continue
+                    d = p.indexes.decimation[bi] if p.indexes.decimation else 1
+                    pk = p.indexes.pk_pk[bi, i, sel][::d]
+                    ok = np.isfinite(pk)
+                    if ok.sum() < 10 or np.median(pk[ok]) * 1e6 <= cfg.thresholds_um[band]:
+                        continue
+                    lam, prom = spectral_peak(p.rail[i, sel], p.dx, band)
+                    v_med = float(np.median(vs))
+                    f_c = v_med / lam if lam > 0 else math.nan
+                    mech, nearest, f_near = classify(f_c, resonances)
+                    if not prom >= MIN_PROMINENCE_DB:
+                        mech = (f"broadband roughness above the threshold (no spectral peak {MIN_PROMINENCE_DB:g} dB "
+                                "over the trend): no wavelength-fixing mechanism")
+                    corr_rows.append({"wheelset": w, "role": p.role, "model": kind, "stretch": name, "rail": rail,
+                                      "band_mm": f"{band[0]:g}-{band[1]:g}",
+                                      "median_pk_pk_um": float(np.median(pk[ok]) * 1e6),
+                                      "dominant_wavelength_mm": lam * 1e3, "peak_prominence_db": prom,
+                                      "speed_m_s": v_med, "frequency_hz": f_c,
+                                      "mechanism": mech, "nearest": nearest, "nearest_hz": f_near})
+    res_table = pd.DataFrame([{"mechanism": n, "frequency_hz": f} for n, f in resonances.candidates()])
+    timings["tables"] = time.perf_counter() - t0
+    timings["total"] = time.perf_counter() - t_start
+    qc = run.mask.table()
+    return FieldEstimate(
+        run_id=run.run_id, source=run.source, header={**{k: getattr(run.header, k) for k in (
+            "run_id", "date", "direction", "orientation", "train", "bogie", "line", "leading_end")},
+            **run.header.extra},
+        direction=orient.direction, orientation=orient.orientation, leading=orient.leading, fs=fs,
+        duration_s=run.duration_s, masked_share=run.masked_share, qc=qc, odometry=pd.DataFrame(list(track.resets)),
+        dx_m=dx_used, lambda_min_m=lam_min, band_hz=(f_lo, f_hi), wheelbase_m=float(wb), wheelbase_source=wb_src,
+        circumference=circ, profiles=profiles, indexes=pd.DataFrame(index_rows), spectra=pd.DataFrame(spec_rows),
+        corrugation=pd.DataFrame(corr_rows, columns=["wheelset", "role", "model", "stretch", "rail", "band_mm",
+                                                     "median_pk_pk_um", "dominant_wavelength_mm",
+                                                     "peak_prominence_db", "speed_m_s",
+                                                     "frequency_hz", "mechanism", "nearest", "nearest_hz"]),
+        resonances=res_table, skipped=tuple(skipped), processing=run.processing + tuple(steps),
+        config=cfg.as_dict(), timings_s=timings, stretches=tuple(stretches))

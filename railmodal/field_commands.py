@@ -1,0 +1,170 @@
+"""``railmodal field estimate``: one field run → rail roughness per rail, EN 13231-3 indexes, EN 15610 spectra.
+
+The command validates every argument and input file before any work,
+calls the library workflow (:func:`estimator.prepare`,
+:func:`estimator.estimate_run`, :func:`estimator.export.write_estimate`) and
+writes its results only when everything succeeded (temporary folder, then
+rename). It prints a short summary: masked share, wheelbase, the corrugated
+stretches and where the report is.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+from railmodal.arguments import bounded_float, existing_file, output_folder
+
+__all__ = ["add_field_commands", "summarise_estimate"]
+
+_DIRECTIONS = ("forward", "backward")
+
+
+def _progress(quiet: bool):
+    if quiet:
+        return lambda msg: None
+    return lambda msg: print(f"  … {msg}", file=sys.stderr, flush=True)
+
+
+def summarise_estimate(est, files: dict | None = None) -> list[str]:
+    """Lines the command prints about an estimate."""
+    lines = [f"run {est.run_id}: {est.duration_s:.1f} s, {est.direction} (wheelset {est.leading} leading), masked "
+             f"{100 * est.masked_share.get('run', 0.0):.1f} %, {len(est.qc)} quality-control finding(s)",
+             f"wheelbase {est.wheelbase_m:.3f} m ({est.wheelbase_source}); inversion band {est.band_hz[0]:g}-"
+             f"{est.band_hz[1]:g} Hz; shortest resolved wavelength {1e3 * est.lambda_min_m:.1f} mm"]
+    for s in est.skipped:
+        lines.append(f"not estimated: {s}")
+    c = est.corrugation
+    if not c.empty:
+        from estimator.corrugation import MIN_PROMINENCE_DB
+
+        lead = c[(c["role"] == "leading") & (c["model"] == (est.models[-1] if est.models else ""))]
+        peaked = lead[lead["peak_prominence_db"] >= MIN_PROMINENCE_DB]
+        # one line per rail and band: the stretch whose spectral peak stands out most (the rest: corrugation.csv)
+        best = peaked.sort_values("peak_prominence_db", ascending=False).drop_duplicates(["rail", "band_mm"])
+        for r in best.sort_values(["rail", "band_mm"]).itertuples():
+            lines.append(f"corrugated: {r.stretch}, rail {r.rail}, {r.band_mm} mm: {r.median_pk_pk_um:.1f} um pk-pk, "
+                         f"lambda {r.dominant_wavelength_mm:.0f} mm at {r.speed_m_s:.1f} m/s = {r.frequency_hz:.0f} Hz "
+                         f"-> {r.mechanism}")
+        rest = len(lead) - len(best)
+        if rest:
+            lines.append(f"{rest} more stretch(es) above the EN 13231-3 thresholds (broadband or repeated): "
+                         "corrugation.csv")
+    else:
+        lines.append("no stretch above the EN 13231-3 thresholds in 30-100 or 100-300 mm")
+    if files and "report" in files:
+        lines.append(f"report: {files['report']}")
+    return lines
+
+
+def _cmd_estimate(args: argparse.Namespace) -> int:
+    from estimator import EstimatorConfig, estimate_run, parse_models, prepare
+    from estimator.export import write_estimate
+    from estimator.io import read_trolley
+    from estimator.reference import reference_indexes
+    from receptance.trackform import load_trackform
+
+    from railmodal.output import check_output_folder, staged_output
+
+    step = _progress(args.quiet)
+    out = Path(args.out)
+    check_output_folder(out)
+    models = parse_models(args.models)
+    from receptance.contact import ContactParameters
+
+    cfg = EstimatorConfig(models=models, speed_gate_m_s=args.speed_gate, wheelbase_m=args.wheelbase,
+                          regularisation=args.regularisation, bogie_coupling=not args.single_wheelset,
+                          contact=ContactParameters(wheel_load_N=args.wheel_load * 1e3))
+    trackform = load_trackform(args.trackform) if args.trackform else None
+    t0 = time.perf_counter()
+    step(f"preparing the transfer functions ({', '.join(models)}) from {args.model}")
+    fm = prepare(args.model, args.sensors, line=args.line, trackform=trackform, config=cfg)
+    reference = None
+    if args.reference:
+        reference = reference_indexes(read_trolley(args.reference), cfg)
+    step(f"estimating {args.run}")
+    est = estimate_run(args.run, fm, direction=args.direction)
+    step("writing profiles, indexes, spectra, figures and the report")
+    with staged_output(out) as tmp:
+        files = write_estimate(est, tmp, reference=reference)
+    files = {k: out / Path(v).relative_to(tmp) for k, v in files.items()}
+    for line in summarise_estimate(est, files):
+        print(line)
+    print(f"done in {time.perf_counter() - t0:.1f} s")
+    return 0
+
+
+def demo_field_step(out: Path, model, wheelset_scenario: str, progress=None) -> list[str]:
+    """``railmodal demo``'s field step: a short virtual-line run estimated with the model the lab workflow built.
+
+    Simulates one forward run of the ``nominal`` line over curve 1 (the corrugated low rail) with the lab
+    scenario's wheelsets into ``out/line``, estimates it with ``model`` (made :func:`estimator.in_service`:
+    test artefacts removed, primary suspension added) and writes the estimate, compared with the day's trolley
+    record, into ``out/field``. Returns the lines to print.
+    """
+    from estimator import estimate_run, prepare
+    from estimator.export import write_estimate
+    from estimator.io import read_trolley
+    from estimator.reference import reference_indexes
+    from lab_data.line.campaign import FIRST_CURVE_SECTION, simulate_line
+
+    from railmodal.output import staged_output
+
+    step = progress or (lambda msg: None)
+    line_dir, field_dir = out / "line", out / "field"
+    with staged_output(line_dir) as tmp:
+        simulate_line("nominal", tmp, progress=step, days=1, runs_per_day=1, section=FIRST_CURVE_SECTION,
+                      wheelset_scenario=wheelset_scenario)
+    run = sorted((line_dir / "runs").rglob("*.mf4"))[0]
+    fm = prepare(model, line_dir / "sensors.csv", line=line_dir / "line.json")
+    step(f"estimating {run.name} with the lab's model (half, vertical, vertical + lateral)")
+    est = estimate_run(run, fm)
+    trolley = sorted((line_dir / "trolley").glob("*.csv"))
+    reference = reference_indexes(read_trolley(trolley[0]), fm.config) if trolley else None
+    with staged_output(field_dir) as tmp:
+        files = write_estimate(est, tmp, reference=reference)
+    files = {k: field_dir / Path(v).relative_to(tmp) for k, v in files.items()}
+    return summarise_estimate(est, files)
+
+
+def add_field_commands(sub) -> None:
+    """Add ``railmodal field ...`` to the top-level subparsers."""
+    field = sub.add_parser("field", help="field runs of the instrumented bogie: rail roughness estimation")
+    fsub = field.add_subparsers(dest="field_command", required=True)
+    est = fsub.add_parser("estimate", help="one run -> rail roughness per rail, EN 13231-3 indexes, EN 15610 spectra, "
+                                           "report")
+    est.add_argument("--run", required=True, type=existing_file("--run", "run (MDF 4, Parquet or CSV)"),
+                     help="run file (ASAM MDF 4, or a Parquet/CSV long table channel, t_s, value, unit)")
+    est.add_argument("--sensors", required=True, type=existing_file("--sensors", "sensor table"),
+                     help="sensor table CSV: name, quantity, unit, wheelset, side, direction, x, y, z, sensitivity")
+    est.add_argument("--model", required=True, type=existing_file("--model", "hybrid wheelset model (.npz)"),
+                     help="hybrid_model.npz written by 'railmodal model build' or 'lab diagnose'")
+    est.add_argument("--trackform", default=None, type=existing_file("--trackform", "trackform (TOML/JSON)"),
+                     help="trackform file for the whole run (default: the line's trackform sections, else thesis "
+                          "Table 2.2)")
+    est.add_argument("--line", default=None, type=existing_file("--line", "line description (line.json)"),
+                     help="line.json: curves (contact angles), trackform sections, sections for the spectra")
+    est.add_argument("--models", default="half,vertical,lateral",
+                     help="transfer-function models, comma separated from half, vertical, lateral "
+                          "(default: all three)")
+    est.add_argument("--direction", choices=_DIRECTIONS, default=None,
+                     help="override the run header's direction of travel (relative to chainage)")
+    est.add_argument("--reference", default=None, type=existing_file("--reference", "trolley reference (CSV)"),
+                     help="trolley file chainage_m, rail, roughness_um: compared in the report")
+    est.add_argument("--wheelbase", default=None, type=bounded_float("--wheelbase", 0.5, 10.0, unit="m"),
+                     help="bogie wheelbase [m] (default: measured from the two wheelsets' estimates)")
+    est.add_argument("--speed-gate", default=3.0, type=bounded_float("--speed-gate", 0.0, 100.0, lo_open=True,
+                                                                      unit="m/s"),
+                     help="samples slower than this are masked (default 3 m/s)")
+    est.add_argument("--regularisation", default=0.02, type=bounded_float("--regularisation", 0.0, 1.0),
+                     help="Tikhonov parameter relative to the largest singular value's 1/3-octave envelope "
+                          "(default 0.02)")
+    est.add_argument("--wheel-load", default=55.0, type=bounded_float("--wheel-load", 1.0, 500.0, unit="kN"),
+                     help="static wheel load [kN] for the Hertz contact stiffness and patch (default 55)")
+    est.add_argument("--single-wheelset", action="store_true",
+                     help="the thesis's single-wheelset transfer functions: leave out the rail's coupling of the "
+                          "bogie's two wheelsets (default: included)")
+    est.add_argument("--out", required=True, type=output_folder("--out"))
+    est.set_defaults(func=_cmd_estimate)

@@ -1,0 +1,84 @@
+"""``railmodal field estimate`` end to end on a synthetic run: files, report sections, and refusals before work."""
+
+from __future__ import annotations
+
+import json
+
+import pandas as pd
+import pytest
+
+from estimator.report import SECTION_TITLES
+from railmodal.cli import main
+from receptance import save_model
+from test_estimator_synthetic import control_model, make_run, sensor_table
+
+
+@pytest.fixture(scope="module")
+def inputs(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("cli")
+    model = tmp / "hybrid_model.npz"
+    save_model(control_model(), model)
+    sensors = tmp / "sensors.csv"
+    sensor_table().to_csv(sensors, index=False)
+    sr = make_run(tmp, control_model(), duration_s=30, name="cli_run")
+    truth = pd.concat([pd.DataFrame({"chainage_m": sr.truth_x[::2], "rail": r, "roughness_um": sr.truth[r][::2] * 1e6})
+                       for r in "LR"])
+    truth.to_csv(tmp / "trolley.csv", index=False)
+    return tmp, model, sensors, sr
+
+
+def test_field_estimate_writes_profiles_tables_figures_and_the_report(inputs, capsys):
+    tmp, model, sensors, sr = inputs
+    out = tmp / "out"
+    code = main(["-q", "field", "estimate", "--run", str(sr.path), "--sensors", str(sensors), "--model", str(model),
+                 "--models", "half,lateral", "--reference", str(tmp / "trolley.csv"), "--out", str(out)])
+    text = capsys.readouterr()
+    assert code == 0, text.err
+    assert "wheelbase 2.20" in text.out and "report:" in text.out
+    for name in ("profiles_ws1.parquet", "profiles_ws2.parquet", "band_pk_pk.parquet", "indexes.csv", "spectra.csv",
+                 "corrugation.csv", "wheel_orders.csv", "qc.csv", "comparison.csv", "summary.json", "report.html"):
+        assert (out / name).is_file(), name
+    prof = pd.read_parquet(out / "profiles_ws1.parquet")
+    assert {"chainage_m", "half_L_um", "vertical_lateral_R_um"} <= set(prof.columns)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["models"] == ["half", "vertical_lateral"] and summary["leading_wheelset"] == 1
+    html = (out / "report.html").read_text()
+    for title in SECTION_TITLES:
+        assert title in html
+    assert html.count("data:image/png;base64") >= 4
+    cmp = pd.read_csv(out / "comparison.csv")
+    vl = cmp[(cmp["model"] == "vertical_lateral") & (cmp["role"] == "leading")
+             & cmp["band_mm"].isin(["30-100", "100-300"])].dropna(subset=["mean_error_db"])
+    assert len(vl) == 4 and vl["energy_error_db"].abs().max() < 1.5  # whole run: corrugation dominates the energy
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--models", "half,sideways"], "unknown transfer-function model 'sideways'"),
+    (["--speed-gate", "0"], "--speed-gate"),
+    (["--wheelbase", "40"], "--wheelbase"),
+])
+def test_bad_arguments_are_refused_before_any_work(inputs, capsys, args, message):
+    tmp, model, sensors, sr = inputs
+    out = tmp / "never"
+    code = None
+    try:
+        code = main(["-q", "field", "estimate", "--run", str(sr.path), "--sensors", str(sensors), "--model",
+                     str(model), "--out", str(out), *args])
+    except SystemExit as exc:  # argparse refuses with exit status 2
+        code = exc.code
+    assert code in (1, 2)
+    assert message in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_missing_and_bad_files_are_named(inputs, capsys, tmp_path):
+    tmp, model, sensors, sr = inputs
+    with pytest.raises(SystemExit):
+        main(["-q", "field", "estimate", "--run", str(tmp / "nope.mf4"), "--sensors", str(sensors), "--model",
+              str(model), "--out", str(tmp_path / "o")])
+    assert "nope.mf4" in capsys.readouterr().err
+    bad = tmp_path / "bad.npz"
+    bad.write_bytes(b"not a model")
+    code = main(["-q", "field", "estimate", "--run", str(sr.path), "--sensors", str(sensors), "--model", str(bad),
+                 "--out", str(tmp_path / "o")])
+    assert code == 1 and "bad.npz" in capsys.readouterr().err and not (tmp_path / "o").exists()

@@ -1,0 +1,160 @@
+"""Quality control and odometry: every bad input is a named error or a logged, reported mask.
+
+Oracles: faults placed at known times/chainages in synthetic runs; the field contract's orientation rule.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from estimator import (EstimatorConfig, NoValidDataError, Odometry, check_run, estimate_run, odometry_track,
+                       orientation, prepare, read_run)
+from test_estimator_synthetic import control_model, make_run, sensor_table
+
+
+@pytest.mark.parametrize("direction, orient, leading, rail_of_L, ws1_sign", [
+    ("forward", "normal", 1, "L", +1),
+    ("backward", "normal", 2, "L", +1),
+    ("forward", "turned", 2, "R", -1),
+    ("backward", "turned", 1, "R", -1),
+])
+def test_orientation_rule_of_the_field_contract(direction, orient, leading, rail_of_L, ws1_sign):
+    o = orientation(direction, orient)
+    assert o.leading == leading and o.trailing == 3 - leading
+    assert o.rail_of_side["L"] == rail_of_L and o.side_of_rail[rail_of_L] == "L"
+    assert o.wheelset_offset_sign == {1: ws1_sign, 2: -ws1_sign}
+    assert o.travel_sign == (1 if direction == "forward" else -1)
+
+
+def _odo(position, balise_t=(), balise_c=(), speed=10.0, rate=100.0):
+    t = np.arange(position.size) / rate
+    return Odometry(t, np.full(t.size, speed), position, np.array(balise_t, float), np.array(balise_c, float))
+
+
+def test_balise_resets_remove_start_offset_and_scale_error():
+    """Odometer 0.3 % long and started 2 m off; balises at 100 and 250 m pin it back to the true chainage."""
+    rate, v, scale = 100.0, 10.0, 1.003
+    t = np.arange(0, 30, 1 / rate)
+    true = 50 + v * t
+    pos = true[0] + 2.0 + v * scale * t
+    bt, bc = [], []
+    for b in (100.0, 250.0):
+        j = int(np.searchsorted(true, b, side="right"))
+        pos[j:] = b + v * scale * (t[j:] - (b - 50) / v)
+        bt.append(t[j])
+        bc.append(b)
+    odo = Odometry(t, np.full(t.size, v * scale), pos, np.array(bt), np.array(bc))
+    tr = odometry_track(odo, +1)
+    assert np.max(np.abs(tr.chainage - true)) < 0.02  # start offset (2 m) and 0.3 % scale gone
+    assert [e.action for e in tr.events] == ["corrected", "corrected"]
+    assert tr.resets[0]["jump_m"] == pytest.approx(-2.0 - 0.003 * 50, abs=0.02)
+    assert tr.scale[-1] == pytest.approx(1 / scale, rel=1e-4)
+
+
+def test_an_implausible_balise_jump_masks_the_stretch_and_a_jump_without_balise_too():
+    rate, v = 100.0, 10.0
+    t = np.arange(0, 30, 1 / rate)
+    true = 50 + v * t
+    pos = true.copy()
+    j1 = int(np.searchsorted(true, 100.0, side="right"))
+    j2 = int(np.searchsorted(true, 250.0, side="right"))
+    pos[j2:] += 20.0  # the second balise claims 20 m more than travelled over 150 m: 13 %, an odometry fault
+    odo = Odometry(t, np.full(t.size, v), pos, np.array([t[j1], t[j2]]), np.array([100.0, 270.0]))
+    tr = odometry_track(odo, +1)
+    bad = [e for e in tr.events if e.kind == "odometry_jump"]
+    assert len(bad) == 1 and bad[0].action == "masked" and "+13.3" in bad[0].reason
+    assert bad[0].chainage_from == pytest.approx(100.0, abs=0.2) and bad[0].chainage_to == pytest.approx(270.0, abs=0.2)
+    # a jump with no balise event is not trusted either
+    pos = true.copy()
+    pos[1500:] += 3.0
+    tr = odometry_track(_odo(pos), +1)
+    (ev,) = [e for e in tr.events if e.kind == "odometry_jump"]
+    assert "without a balise" in ev.reason and tr.untrusted
+
+
+@pytest.fixture(scope="module")
+def faulty(tmp_path_factory):
+    """A run with a NaN dropout, a flat dropout, a clipped channel, standstill and reversing, at known times."""
+    tmp = tmp_path_factory.mktemp("qc")
+
+    def faults(ch):
+        t, v, u = ch["ACC_W1L_Z"]
+        v = v.copy()
+        v[(t >= 10.0) & (t < 10.5)] = np.nan
+        ch["ACC_W1L_Z"] = (t, v, u)
+        t, v, u = ch["ACC_W2R_Z"]
+        v = v.copy()
+        sel = (t >= 20.0) & (t < 20.3)
+        v[sel] = v[np.flatnonzero(sel)[0] - 1]
+        ch["ACC_W2R_Z"] = (t, v, u)
+        t, v, u = ch["ACC_W1R_Y"]
+        lim = 0.5 * np.max(np.abs(v))
+        ch["ACC_W1R_Y"] = (t, np.clip(v, -lim, lim), u)
+        to, sp, su = ch["SPEED"]
+        new = sp.copy()
+        new[(to >= 34.0) & (to < 35.0)] = -1.5  # rolling back after the last balise, position consistent
+        ch["SPEED"] = (to, new, su)
+        tp, pos, pu = ch["POSITION"]
+        ch["POSITION"] = (tp, pos + np.concatenate([[0.0], np.cumsum(new - sp)[:-1]]) * 0.01, pu)
+
+    return make_run(tmp, control_model(), duration_s=40, faults=faults, name="faulty")
+
+
+def test_dropouts_clipping_standstill_and_reversing_are_masked_with_reasons(faulty, caplog):
+    run = read_run(faulty.path, sensor_table())
+    tr = odometry_track(run.odometry, +1)
+    run = check_run(run, tr, EstimatorConfig())
+    q = run.mask.table()
+    nan = q[q["kind"] == "dropout_nan"].iloc[0]
+    assert nan["channel"] == "ACC_W1L_Z" and nan["t_start_s"] == pytest.approx(10.0, abs=0.01)
+    assert nan["t_end_s"] == pytest.approx(10.5, abs=0.01)
+    assert nan["chainage_from_m"] == pytest.approx(np.interp(10.0, faulty.t, faulty.chainage), abs=0.5)
+    flat = q[q["kind"] == "dropout_flat"].iloc[0]
+    assert flat["channel"] == "ACC_W2R_Z" and flat["t_start_s"] == pytest.approx(20.0, abs=0.01)
+    clip = q[q["kind"] == "clipping"]
+    assert set(clip["channel"]) == {"ACC_W1R_Y"} and len(clip) >= 3
+    rev = q[q["kind"] == "reversing"].iloc[0]
+    assert rev["t_start_s"] == pytest.approx(34.0, abs=0.05) and rev["channel"] == "*"
+    assert not q["kind"].str.startswith("odometry").any()  # a consistent roll-back is no odometry fault
+    assert (q["kind"] == "standstill").any() and (q["kind"] == "low_speed").any()
+    i = run.index("ACC_W1L_Z")
+    t = run.t
+    assert run.mask.masked[i, (t > 10.1) & (t < 10.4)].all() and not run.mask.masked[i, (t > 12) & (t < 13)].any()
+    share = run.masked_share
+    assert share["ACC_W1L_Z"] > share["ACC_W2L_Z"] and 0 < share["run"] < 0.5
+    assert "dropout_nan [ACC_W1L_Z]" in caplog.text
+    # nothing interpolated over: the raw NaNs stay NaN in the run
+    assert np.isnan(run.acceleration[i, (t > 10.1) & (t < 10.4)]).all()
+
+
+def test_the_estimate_reports_the_masks_and_skips_only_what_it_must(faulty):
+    fm = prepare(control_model(), sensor_table(), config=EstimatorConfig(models=("half", "vertical")))
+    est = estimate_run(faulty.path, fm)
+    assert {"dropout_nan", "dropout_flat", "clipping", "reversing"} <= set(est.qc["kind"])
+    p = est.profile(1, "vertical")
+    i = p.rail_row("L")
+    x_gap = np.interp(10.25, faulty.t, faulty.chainage) + est.wheelbase_m / 2
+    k = np.searchsorted(p.chainage_m, x_gap)
+    assert np.isnan(p.rail[i, k])  # the dropout is a hole in the profile, not an interpolation
+    assert np.isfinite(p.rail[i, np.searchsorted(p.chainage_m, x_gap + 30)])
+
+
+def test_a_run_with_nothing_valid_is_a_named_error(tmp_path):
+    def kill(ch):
+        for name in list(ch):
+            if name.startswith("ACC"):
+                t, v, u = ch[name]
+                ch[name] = (t, np.full_like(v, np.nan), u)
+
+    sr = make_run(tmp_path, control_model(), duration_s=20, faults=kill, name="dead")
+    fm = prepare(control_model(), sensor_table(), config=EstimatorConfig(models=("vertical",)))
+    with pytest.raises(NoValidDataError, match="dead"):
+        estimate_run(sr.path, fm)
+
+
+def test_zero_speed_run_is_a_named_error(tmp_path):
+    sr = make_run(tmp_path, control_model(), duration_s=20, v_cruise=0.0, name="still")
+    fm = prepare(control_model(), sensor_table(), config=EstimatorConfig(models=("vertical",)))
+    with pytest.raises(NoValidDataError, match="still"):
+        estimate_run(sr.path, fm)
