@@ -1,0 +1,116 @@
+"""Confidence intervals of the daily band indexes: run-to-run scatter, transfer functions, sensor placement.
+
+Three sources, given separately and combined (thesis §4.3.3–4.3.5, Figs. 4.11–4.15):
+
+**Run-to-run scatter** (random: shrinks with more runs). From
+:func:`estimator.monitoring.averaging.day_average`: the half-width
+``t_{(1+c)/2, n_eff−1} · se_db`` around the day's energy average (Student's
+t with the effective number of runs; undefined with a single run).
+
+**Transfer-function uncertainty** (systematic: the same model inverts every
+run). The perturbed models of :mod:`estimator.monitoring.variants` process the
+same accelerations; in each unit the level differences ``ΔL = L_variant −
+L_nominal`` (same run, wheelset, rail, band) pooled over the variants and the
+day's runs give the interval ``[q_{(1−c)/2}(ΔL), q_{(1+c)/2}(ΔL)]`` dB around
+the nominal value (the thesis's 95 % band of the 25 models' roughness).
+
+**Accelerometer placement** (systematic): the same with the shifted-sensor
+variants (±10, ±30, ±50 mm).
+
+**Combined.** The sources are independent, so their half-widths add in
+quadrature on each side: ``lower = sqrt(h_s² + a_m² + a_p²)`` with ``a_k =
+max(0, −q_lo,k)`` and likewise above with ``max(0, q_hi,k)``; a source that
+was not evaluated contributes nothing (and says so: its columns are NaN). The
+interval is ``[L − lower, L + upper]`` around the day's level ``L``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+from estimator.monitoring.averaging import MIN_VALID_SHARE, level_db
+
+__all__ = ["SOURCES", "variant_deltas", "variant_spread", "with_intervals", "coverage"]
+
+SOURCES = ("model", "placement")
+
+
+def variant_deltas(variants: pd.DataFrame, nominal: pd.DataFrame, unit: str = "window_m") -> pd.DataFrame:
+    """``ΔL`` of every variant row against the nominal row of the same run, wheelset, rail, band and unit."""
+    keys = [c for c in ("run_id", "wheelset", "rail", "band_mm", unit) if c in variants.columns]
+    if variants.empty or nominal.empty:
+        return pd.DataFrame(columns=keys + ["date", "source", "variant", "delta_db"])
+    v = variants[variants["valid_share"] >= MIN_VALID_SHARE]
+    n = nominal[nominal["valid_share"] >= MIN_VALID_SHARE][keys + ["pk_pk_um"]].rename(columns={"pk_pk_um": "_nom"})
+    j = v.merge(n, on=keys, how="inner")
+    j["delta_db"] = level_db(j["pk_pk_um"]) - level_db(j["_nom"])
+    j = j[np.isfinite(j["delta_db"])]
+    return j.drop(columns=["_nom"])
+
+
+def variant_spread(deltas: pd.DataFrame, *, unit: str = "window_m", confidence: float = 0.95,
+                   by: tuple[str, ...] = ("date",)) -> pd.DataFrame:
+    """Per ``by``, source, rail, band and unit: the ``confidence`` interval of ``ΔL`` and its median."""
+    keys = list(by) + ["source", "rail", "band_mm", unit]
+    if deltas.empty:
+        return pd.DataFrame(columns=keys + ["lo_db", "hi_db", "median_db", "variants"])
+    lo, hi = (1 - confidence) / 2, (1 + confidence) / 2
+    g = deltas.groupby(keys, sort=True)["delta_db"]
+    out = pd.DataFrame({"lo_db": g.quantile(lo), "hi_db": g.quantile(hi), "median_db": g.median(),
+                        "variants": g.size()}).reset_index()
+    return out
+
+
+def with_intervals(day: pd.DataFrame, spread: pd.DataFrame | None = None, *, unit: str = "window_m",
+                   confidence: float = 0.95, by: tuple[str, ...] = ("date",)) -> pd.DataFrame:
+    """The day averages with each source's interval and the combined one (module docstring).
+
+    Adds ``scatter_lo_db, scatter_hi_db, model_lo_db, model_hi_db, placement_lo_db, placement_hi_db`` (offsets
+    from ``level_db``), ``ci_lo_db, ci_hi_db`` (combined, absolute levels) and ``pk_lo_um, pk_hi_um``.
+    """
+    out = day.copy()
+    keys = list(by) + ["rail", "band_mm", unit]
+    n_eff = out["n_eff"].to_numpy(float)
+    with np.errstate(invalid="ignore"):
+        tq = np.where(n_eff > 1, stats.t.ppf((1 + confidence) / 2, np.maximum(n_eff - 1, 1e-9)), np.nan)
+    h = tq * out["se_db"].to_numpy(float)
+    out["scatter_lo_db"] = -h
+    out["scatter_hi_db"] = h
+    lower = np.nan_to_num(h) ** 2
+    upper = np.nan_to_num(h) ** 2
+    for src in SOURCES:
+        lo_c, hi_c = f"{src}_lo_db", f"{src}_hi_db"
+        if spread is not None and not spread.empty and (spread["source"] == src).any():
+            s = spread[spread["source"] == src].set_index(keys)[["lo_db", "hi_db"]]
+            j = out.join(s, on=keys)
+            out[lo_c] = j["lo_db"].to_numpy(float)
+            out[hi_c] = j["hi_db"].to_numpy(float)
+        else:
+            out[lo_c] = np.nan
+            out[hi_c] = np.nan
+        lower = lower + np.nan_to_num(np.maximum(0.0, -out[lo_c].to_numpy(float))) ** 2
+        upper = upper + np.nan_to_num(np.maximum(0.0, out[hi_c].to_numpy(float))) ** 2
+    L = out["level_db"].to_numpy(float)
+    out["ci_lo_db"] = L - np.sqrt(lower)
+    out["ci_hi_db"] = L + np.sqrt(upper)
+    out["pk_lo_um"] = 10 ** (out["ci_lo_db"] / 20)
+    out["pk_hi_um"] = 10 ** (out["ci_hi_db"] / 20)
+    return out
+
+
+def coverage(intervals: pd.DataFrame, truth: pd.DataFrame, *, unit: str = "window_m",
+             columns: tuple[str, str] = ("ci_lo_db", "ci_hi_db"), by: tuple[str, ...] = ("date",)) -> pd.DataFrame:
+    """Share of units whose truth level lies inside the interval, per band (and ``by``).
+
+    ``truth`` holds ``rail, band_mm, <unit>, level_db`` (and the ``by`` columns it has).
+    """
+    keys = [k for k in by if k in truth.columns] + ["rail", "band_mm", unit]
+    j = intervals.merge(truth[keys + ["level_db"]].rename(columns={"level_db": "truth_db"}), on=keys, how="inner")
+    lo, hi = columns
+    j = j[np.isfinite(j[lo]) & np.isfinite(j[hi]) & np.isfinite(j["truth_db"])]
+    j["covered"] = (j["truth_db"] >= j[lo]) & (j["truth_db"] <= j[hi])
+    g = j.groupby("band_mm")
+    return pd.DataFrame({"windows": g.size(), "covered": g["covered"].sum(),
+                         "coverage": g["covered"].mean()}).reset_index()

@@ -1,0 +1,312 @@
+"""The monitoring store: every run's and every day's results in a partitioned Parquet dataset.
+
+Layout (Hive partitioning, which pandas/pyarrow, DuckDB and Dask read
+directly, without glue code)::
+
+    STORE/
+      store.json                                  format and version of the store
+      <table>/line=<line>/section=<section>/date=<YYYY-MM-DD>/<key>__<model>.parquet
+      references/line=<line>/date=<date>/<model>.parquet   the day's alignment reference
+
+Tables (:data:`TABLES`): ``runs`` (one row per run and section: header, QC,
+speed, alignment verdict), ``windows`` (band peak-to-peak per chainage window,
+wheelset and rail), ``variants`` (the same from the perturbed and shifted-
+sensor models, thesis §4.3.4–4.3.5), ``spectra`` (EN 15610 levels per stretch),
+``alignment`` (pieces of every run's chainage correction), ``failures`` (runs
+that could not be processed, section ``none``), ``days`` (energy averages
+and confidence intervals per window), ``day_sections`` (per section, rail
+and band). Every row carries ``model_hash`` (SHA-256 of the model file, first
+16 hex digits), ``model_file`` and ``toolkit_version``; the partition
+columns ``line``, ``section`` and ``date`` come from the folder names.
+
+**Atomic, idempotent, concurrent writes.** A run's rows go to one file per
+partition, named after the run and the model (``<run_id>__<model_hash>``):
+re-processing the run with the same model *replaces* those files, a new
+model writes files beside them (both versions side by side). Each file is
+written to a hidden temporary name in its partition folder (``.<name>.tmp-…``,
+ignored by every reader: pyarrow skips names starting with ``.``, and the
+suffix is not ``.parquet``) and renamed over the final name with
+:func:`os.replace` (atomic on POSIX): a reader sees the old file or the new
+one, never half a file. Writers hold an exclusive :func:`fcntl.flock` on
+``STORE/.lock`` while they rename, remove stale files (a run whose rows moved
+to other sections) and clean temporary files left by a writer that died; two
+processes writing at once therefore serialise their updates and lose
+nothing. A crash between two partitions of one run leaves that run's old
+rows in the partitions not yet replaced (never a partial file, never a
+duplicate); ingesting the run again completes it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import json
+import logging
+import os
+import re
+import uuid
+from pathlib import Path
+from typing import Iterable, Iterator, Mapping
+
+import pandas as pd
+import pyarrow as pa
+import pyarrow.dataset as pads
+import pyarrow.parquet as pq
+
+from estimator.monitoring.errors import StoreError
+
+__all__ = ["MonitoringStore", "TABLES", "RUN_TABLES", "DAY_TABLES", "safe_name", "STORE_FORMAT", "STORE_VERSION"]
+
+log = logging.getLogger("estimator")
+
+STORE_FORMAT = "railmodal-monitoring-store"
+STORE_VERSION = 1
+RUN_TABLES = ("runs", "windows", "variants", "spectra", "alignment", "failures")
+DAY_TABLES = ("days", "day_sections")
+TABLES = RUN_TABLES + DAY_TABLES
+PARTITIONS = ("line", "section", "date")
+_SAFE = re.compile(r"[^A-Za-z0-9._+-]")
+_DATE = re.compile(r"^(\d{4}-\d{2}-\d{2}|unknown)$")
+
+
+def safe_name(text) -> str:
+    """A partition value or file-name part: letters, digits and ``._+-`` (anything else becomes ``_``)."""
+    s = _SAFE.sub("_", str(text).strip())
+    if not s or s in (".", ".."):
+        raise StoreError(f"{text!r} cannot name a partition or a file")
+    return s
+
+
+class MonitoringStore:
+    """A monitoring store folder (module docstring); created on first write.
+
+    Parameters
+    ----------
+    root : str or Path
+        The store folder.
+    """
+
+    def __init__(self, root) -> None:
+        self.root = Path(root)
+        if self.root.exists() and not self.root.is_dir():
+            raise StoreError(f"store {self.root} is a file, not a folder")
+        meta = self.root / "store.json"
+        if meta.exists():
+            try:
+                d = json.loads(meta.read_text())
+            except ValueError:
+                raise StoreError(f"{meta}: not a JSON store description") from None
+            if d.get("format") != STORE_FORMAT:
+                raise StoreError(f"{self.root} is not a monitoring store ({meta} says format {d.get('format')!r}, "
+                                 f"expected {STORE_FORMAT!r})")
+            if int(d.get("version", 0)) > STORE_VERSION:
+                raise StoreError(f"{self.root}: store version {d.get('version')} is newer than this toolkit's "
+                                 f"({STORE_VERSION}); update railmodal")
+        elif self.root.exists() and any(p.name != ".lock" for p in self.root.iterdir()):
+            raise StoreError(f"{self.root} is a non-empty folder without store.json: not a monitoring store "
+                             "(give an empty or new folder)")
+
+    # ------------------------------------------------------------------ locking
+    @contextlib.contextmanager
+    def lock(self) -> Iterator[None]:
+        """Exclusive lock of the store (between processes and threads); cleans dead writers' temporary files."""
+        self.root.mkdir(parents=True, exist_ok=True)
+        fd = os.open(self.root / ".lock", os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX)
+            meta = self.root / "store.json"
+            if not meta.exists():
+                self._write_bytes(meta, json.dumps({"format": STORE_FORMAT, "version": STORE_VERSION}).encode())
+            self._clean_temporaries()
+            yield
+        finally:
+            fcntl.flock(fd, fcntl.LOCK_UN)
+            os.close(fd)
+
+    def _clean_temporaries(self) -> None:
+        # called with the lock held: any temporary file now is a dead writer's (live ones hold the lock)
+        for p in self.root.rglob(".*.tmp-*"):
+            with contextlib.suppress(OSError):
+                p.unlink()
+                log.info("store %s: removed %s left by an interrupted write", self.root, p)
+
+    @staticmethod
+    def _write_bytes(path: Path, data: bytes) -> None:
+        tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}-{uuid.uuid4().hex[:8]}")
+        with open(tmp, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+
+    @staticmethod
+    def _write_table(frame: pd.DataFrame, path: Path) -> Path:
+        """``frame`` to a temporary file beside ``path`` (fsynced); returns the temporary path."""
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}-{uuid.uuid4().hex[:8]}")
+        table = pa.Table.from_pandas(frame.reset_index(drop=True), preserve_index=False)
+        pq.write_table(table, tmp)
+        with open(tmp, "rb") as f:
+            os.fsync(f.fileno())
+        return tmp
+
+    # ------------------------------------------------------------------ writing
+    def _partition(self, table: str, line: str, section: str, date: str) -> Path:
+        return self.root / table / f"line={safe_name(line)}" / f"section={safe_name(section)}" / f"date={date}"
+
+    def _split(self, table: str, frame: pd.DataFrame, line: str) -> dict[Path, pd.DataFrame]:
+        missing = [c for c in ("section", "date") if c not in frame.columns]
+        if missing:
+            raise StoreError(f"rows for table {table!r} lack partition column(s) {missing}")
+        out = {}
+        for (section, date), g in frame.groupby(["section", "date"], sort=True):
+            if not _DATE.match(str(date)):
+                raise StoreError(f"table {table!r}: date must be YYYY-MM-DD (or 'unknown' for a failure), got {date!r}")
+            out[self._partition(table, line, str(section), str(date))] = g.drop(
+                columns=[c for c in PARTITIONS if c in g.columns])
+        return out
+
+    def write(self, line: str, key: str, model_hash: str, tables: Mapping[str, pd.DataFrame],
+              replace_tables: Iterable[str] | None = None) -> list[Path]:
+        """Write one unit's rows (a run, or a day) atomically per partition, replacing that unit's earlier rows.
+
+        Parameters
+        ----------
+        line : str
+            The line's id (partition).
+        key : str
+            The unit: a run id, or ``day`` for a day's aggregates.
+        model_hash : str
+            The model version: files are ``<key>__<model_hash>.parquet``.
+        tables : mapping of table name → DataFrame
+            Rows with ``section`` and ``date`` columns (moved to the partition path).
+        replace_tables : iterable of str, optional
+            Tables whose earlier files of this unit are removed when not rewritten (default: the tables given,
+            plus, for a run, every run table: a re-processed run that now fails loses its old rows).
+
+        Returns
+        -------
+        list of Path
+            The files written.
+        """
+        bad = [t for t in tables if t not in TABLES]
+        if bad:
+            raise StoreError(f"unknown table(s) {bad}; the store holds {list(TABLES)}")
+        name = f"{safe_name(key)}__{safe_name(model_hash)}.parquet"
+        plan: dict[Path, pd.DataFrame] = {}
+        for t, frame in tables.items():
+            if frame is None or len(frame) == 0:
+                continue
+            for part, rows in self._split(t, frame, line).items():
+                plan[part / name] = rows
+        scope = set(tables) if replace_tables is None else set(replace_tables)
+        temps = {}
+        written = []
+        with self.lock():
+            try:
+                for path, rows in plan.items():
+                    temps[path] = self._write_table(rows, path)
+                for path, tmp in temps.items():
+                    os.replace(tmp, path)
+                    written.append(path)
+            finally:
+                for tmp in temps.values():
+                    with contextlib.suppress(FileNotFoundError):
+                        tmp.unlink()
+            keep = set(plan)
+            for t in scope:
+                for old in (self.root / t / f"line={safe_name(line)}").glob(f"section=*/date=*/{name}"):
+                    if old not in keep:
+                        old.unlink()
+                        self._prune(old.parent)
+        return written
+
+    def _prune(self, folder: Path) -> None:
+        """Remove empty partition folders up to the table folder."""
+        with contextlib.suppress(OSError):
+            while folder != self.root and folder.parent != self.root and not any(folder.iterdir()):
+                folder.rmdir()
+                folder = folder.parent
+
+    def write_reference(self, line: str, date: str, model_hash: str, frame: pd.DataFrame, meta: Mapping) -> Path:
+        """Store a day's alignment reference (feature signal) atomically."""
+        path = self.root / "references" / f"line={safe_name(line)}" / f"date={date}" / f"{safe_name(model_hash)}.parquet"
+        table = pa.Table.from_pandas(frame, preserve_index=False)
+        table = table.replace_schema_metadata({**(table.schema.metadata or {}),
+                                               b"reference": json.dumps(dict(meta)).encode()})
+        with self.lock():
+            path.parent.mkdir(parents=True, exist_ok=True)
+            tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}-{uuid.uuid4().hex[:8]}")
+            pq.write_table(table, tmp)
+            os.replace(tmp, path)
+        return path
+
+    def read_reference(self, line: str, date: str, model_hash: str) -> tuple[pd.DataFrame, dict] | None:
+        path = self.root / "references" / f"line={safe_name(line)}" / f"date={date}" / f"{safe_name(model_hash)}.parquet"
+        if not path.exists():
+            return None
+        t = pq.read_table(path)
+        meta = json.loads((t.schema.metadata or {}).get(b"reference", b"{}"))
+        return t.to_pandas(), meta
+
+    # ------------------------------------------------------------------ reading
+    def files(self, table: str) -> list[Path]:
+        if table not in TABLES:
+            raise StoreError(f"unknown table {table!r}; the store holds {list(TABLES)}")
+        return sorted((self.root / table).glob("line=*/section=*/date=*/*.parquet"))
+
+    def read(self, table: str, *, line: str | None = None, section: str | Iterable[str] | None = None,
+             date: str | Iterable[str] | None = None, model_hash: str | None = None,
+             columns: list[str] | None = None) -> pd.DataFrame:
+        """Rows of one table (partition columns as strings), optionally filtered; an empty frame if none."""
+        if table not in TABLES:
+            raise StoreError(f"unknown table {table!r}; the store holds {list(TABLES)}")
+        folder = self.root / table
+        if not folder.exists() or not self.files(table):
+            return pd.DataFrame()
+        part = pads.partitioning(pa.schema([(p, pa.string()) for p in PARTITIONS]), flavor="hive")
+        try:
+            ds = pads.dataset(folder, format="parquet", partitioning=part)
+        except (pa.ArrowInvalid, OSError) as exc:
+            raise StoreError(f"{folder}: the dataset cannot be read ({exc})") from None
+        flt = None
+
+        def add(expr):
+            nonlocal flt
+            flt = expr if flt is None else flt & expr
+
+        if line is not None:
+            add(pads.field("line") == safe_name(line))
+        for name, value in (("section", section), ("date", date)):
+            if value is None:
+                continue
+            vals = [value] if isinstance(value, str) else list(value)
+            add(pads.field(name).isin([safe_name(v) if name == "section" else str(v) for v in vals]))
+        if model_hash is not None and "model_hash" in ds.schema.names:
+            add(pads.field("model_hash") == model_hash)
+        try:
+            t = ds.to_table(filter=flt, columns=columns)
+        except (pa.ArrowInvalid, OSError) as exc:
+            raise StoreError(f"{folder}: the dataset cannot be read ({exc})") from None
+        return t.to_pandas()
+
+    def lines(self) -> list[str]:
+        return sorted({p.name.split("=", 1)[1] for t in TABLES for p in (self.root / t).glob("line=*")})
+
+    def model_versions(self, line: str | None = None) -> pd.DataFrame:
+        """The model versions in the store: ``model_hash, model_file, toolkit_version, runs, first/last date``."""
+        runs = self.read("runs", line=line, columns=["run_id", "date", "model_hash", "model_file",
+                                                     "toolkit_version", "processed_at"])
+        if runs.empty:
+            return pd.DataFrame(columns=["model_hash", "model_file", "toolkit_version", "runs", "first_date",
+                                         "last_date", "processed_at"])
+        g = runs.groupby("model_hash")
+        return pd.DataFrame({
+            "model_hash": list(g.groups),
+            "model_file": g["model_file"].first().to_numpy(),
+            "toolkit_version": g["toolkit_version"].first().to_numpy(),
+            "runs": g["run_id"].nunique().to_numpy(),
+            "first_date": g["date"].min().to_numpy(),
+            "last_date": g["date"].max().to_numpy(),
+            "processed_at": g["processed_at"].max().to_numpy(),
+        }).sort_values("processed_at").reset_index(drop=True)

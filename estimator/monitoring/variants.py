@@ -1,0 +1,138 @@
+"""Perturbed wheelset models and shifted accelerometers applied to the same accelerations (thesis §4.3.4–4.3.5).
+
+**Transfer-function uncertainty (§4.3.4).** ``n_perturbed`` models (25 in
+the thesis) are drawn as in the robustness study
+(:func:`receptance.robustness.perturbation_factors`: every natural frequency
+and damping ratio of the hybrid model times an independent uniform factor
+within ``±perturbation``, 10 % in the thesis, one ``(n, n_modes, 2)`` draw
+from ``numpy.random.default_rng(seed)``). The perturbation is applied to the
+hybrid model's modal parameters — the quantities the modal test measured,
+with their uncertainty — before its modifications (primary suspension,
+effects) are solved, so a perturbed model is as physical as the nominal one.
+
+**Accelerometer placement (§4.3.5).** Every accelerometer is moved by
+``±s`` (``s`` in ``placement_shifts_mm``: 10, 30, 50 mm) along each axis of
+``placement_axes`` (x along the track, y along the axle by default): one
+variant per shift and axis, the receptances taken at the shifted points
+(the point stays attached to its axlebox node and the node's rotations act
+through the offset, :func:`receptance.dofs.shifted_point`'s model; here the
+sensor table's mounting point moves, which :func:`estimator.inversion.sensor_model`
+turns into that point).
+
+Each variant is a :class:`~estimator.workflow.FieldModel` of its own whose
+transfer functions are derived once and memoised, so all of a day's runs —
+and a fleet worker's whole batch — share them; a run's accelerations (read
+and checked once) go through every variant with the single-run estimator,
+and the variants' band indexes are read on the nominal estimate's aligned
+chainage windows.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, replace
+
+import numpy as np
+import pandas as pd
+
+from estimator.monitoring.config import MonitoringConfig
+from estimator.monitoring.records import window_table
+
+__all__ = ["Variant", "perturbed_variants", "placement_variants", "variant_windows"]
+
+log = logging.getLogger("estimator")
+
+
+@dataclass(frozen=True, eq=False)
+class Variant:
+    """One perturbed or shifted field model: ``source`` is ``model`` or ``placement``."""
+
+    source: str
+    label: str
+    field_model: object
+    shift_m: tuple[str, float] | None = None  # (axis, metres) every accelerometer is moved by
+
+    def applied_to(self, run):
+        """The run as this variant sees it: its accelerometers' mounting points moved for a placement variant."""
+        if self.shift_m is None:
+            return run
+        axis, d = self.shift_m
+        ch = run.channels.copy()
+        ch[axis] = ch[axis].astype(float) + d
+        return run.with_step(f"accelerometers moved by {1e3 * d:+g} mm along {axis} (placement variant)", channels=ch)
+
+
+def _variant_config(fm, cfg: MonitoringConfig):
+    return fm.config.replace(models=(cfg.model,))
+
+
+def perturbed_variants(field_model, cfg: MonitoringConfig = MonitoringConfig()) -> list[Variant]:
+    """The ``n_perturbed`` perturbed-model field models (module docstring)."""
+    from receptance.robustness import perturbation_factors
+
+    if cfg.n_perturbed == 0:
+        return []
+    m = field_model.model
+    fw, fz = perturbation_factors(cfg.n_perturbed, len(m.freqs_hz), cfg.perturbation, cfg.perturbation_seed)
+    out = []
+    vc = _variant_config(field_model, cfg)
+    for p in range(cfg.n_perturbed):
+        z = np.minimum(m.zeta * fz[p], 0.999)
+        mp = m.with_modal_parameters(m.freqs_hz * fw[p], z,
+                                     step=f"perturbed model {p + 1}/{cfg.n_perturbed} (+/-{100 * cfg.perturbation:g} % "
+                                          f"on f and zeta, seed {cfg.perturbation_seed})")
+        out.append(Variant("model", f"model {p + 1:02d}", replace(field_model, model=mp, config=vc, cache={})))
+    return out
+
+
+def placement_variants(field_model, cfg: MonitoringConfig = MonitoringConfig()) -> list[Variant]:
+    """One field model per accelerometer shift ``±s`` along each placement axis (module docstring)."""
+    out = []
+    vc = _variant_config(field_model, cfg)
+    acc = field_model.sensors["quantity"] == "acceleration"
+    for axis in cfg.placement_axes:
+        for s in cfg.placement_shifts_mm:
+            for sign in (+1, -1):
+                table = field_model.sensors.copy()
+                table.loc[acc, axis] = table.loc[acc, axis].astype(float) + sign * s * 1e-3
+                # its own (empty) transfer cache: the memo is keyed by channel names, not mounting points
+                out.append(Variant("placement", f"shift {axis} {sign * s:+g} mm",
+                                   replace(field_model, sensors=table, config=vc, cache={}),
+                                   (axis, sign * s * 1e-3)))
+    return out
+
+
+def variant_windows(run, variants: list[Variant], alignments, cfg: MonitoringConfig) -> tuple[pd.DataFrame, list[str]]:
+    """Every variant's band peak-to-peak per chainage window for one run (read once, estimated per variant).
+
+    Parameters
+    ----------
+    run : estimator.run.Run
+        The run as read (sensitivities applied).
+    variants : list of Variant
+    alignments : mapping wheelset → Alignment
+        The nominal estimate's chainage corrections.
+    cfg : MonitoringConfig
+
+    Returns
+    -------
+    windows, problems : DataFrame, list of str
+        ``source, variant`` plus the columns of :func:`~estimator.monitoring.records.window_table`; the variants
+        that could not be estimated and why.
+    """
+    from estimator.errors import EstimatorError
+    from estimator.workflow import estimate_run
+
+    frames, problems = [], []
+    for v in variants:
+        try:
+            est = estimate_run(v.applied_to(run), v.field_model)
+        except EstimatorError as exc:
+            problems.append(f"{v.label}: {exc}")
+            log.warning("%s: variant %s not estimated: %s", run.source, v.label, exc)
+            continue
+        w = window_table(est, cfg.model, alignments, cfg.window_m)
+        frames.append(w.assign(source=v.source, variant=v.label))
+    if not frames:
+        return pd.DataFrame(), problems
+    return pd.concat(frames, ignore_index=True), problems

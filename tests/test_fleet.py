@@ -1,0 +1,66 @@
+"""A batch on Dask (a local cluster of two worker processes) gives the local path's results; a bad run fails alone."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from test_estimator_synthetic import control_model, make_run, sensor_table
+
+from estimator import EstimatorConfig
+from estimator.fleet import DaskExecutor, LocalExecutor
+from estimator.monitoring import IngestSpec, MonitoringConfig, MonitoringStore, ingest
+
+KEYS = {"windows": ["run_id", "wheelset", "rail", "band_mm", "window_m"],
+        "days": ["date", "rail", "band_mm", "window_m"],
+        "variants": ["run_id", "variant", "wheelset", "rail", "band_mm", "window_m"],
+        "alignment": ["run_id", "wheelset", "stage", "from_m"],
+        "runs": ["run_id", "section"]}
+
+
+@pytest.fixture(scope="module")
+def batch(tmp_path_factory):
+    from receptance.model_io import save_model
+
+    d = tmp_path_factory.mktemp("fleet")
+    model = control_model()
+    save_model(model, d / "hybrid_model.npz")
+    sensor_table().to_csv(d / "sensors.csv", index=False)
+    runs = [make_run(d, model, duration_s=20.0, start_offset_m=o, odometer_scale=s, name=f"f{k}",
+                     header_extra={"run_id": f"f{k}"}).path
+            for k, (o, s) in enumerate([(1.0, 1.002), (-1.5, 0.999), (0.3, 1.0)])]
+    bad = d / "broken.mf4"
+    bad.write_bytes(b"MDF     4.10    " + bytes(200))
+    spec = IngestSpec(str(d / "hybrid_model.npz"), str(d / "sensors.csv"), estimator=EstimatorConfig(wheelbase_m=2.2),
+                      monitoring=MonitoringConfig(n_perturbed=1, placement_shifts_mm=(30.0,), placement_axes=("y",)))
+    return d, runs + [bad], spec
+
+
+def _table(st: MonitoringStore, name: str) -> pd.DataFrame:
+    t = st.read(name)
+    t = t.drop(columns=[c for c in ("processed_at",) if c in t.columns])
+    return t.sort_values(KEYS[name]).reset_index(drop=True)
+
+
+@pytest.mark.slow
+def test_dask_batch_equals_the_local_path_and_reports_a_failed_run(batch):
+    d, runs, spec = batch
+    local = MonitoringStore(d / "local")
+    r_local = ingest(runs, spec, local, executor=LocalExecutor())
+    seen = []
+    with DaskExecutor(workers=2, memory_limit="1.5GiB") as ex:
+        r_dask = ingest(runs, spec, MonitoringStore(d / "dask"), executor=ex,
+                        progress=lambda done, total, msg: seen.append((done, total)))
+    assert seen[-1][0] == seen[-1][1] == 4  # the progress reached every run, the failed one included
+    assert "dask" in r_dask.executor and "2 worker" in r_dask.executor
+    for r in (r_local, r_dask):
+        assert len(r.failures) == 1 and "broken" in r.failures["source"].iloc[0]
+        assert set(r.runs["run_id"]) == {"f0", "f1", "f2"}
+    dask = MonitoringStore(d / "dask")
+    for name in KEYS:
+        a, b = _table(local, name), _table(dask, name)
+        assert len(a) == len(b) > 0, name
+        pd.testing.assert_frame_equal(a, b, check_exact=False, rtol=1e-12, atol=0, obj=name)
+    w = _table(dask, "windows")
+    assert np.isfinite(w["pk_pk_um"]).all()

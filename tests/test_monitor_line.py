@@ -1,0 +1,106 @@
+"""Monitoring on the virtual line (issue 14's acceptance, short version): alignment against the true chainage,
+the day average of the corrugated curve against the true roughness.
+
+One survey day of four runs on the stretch around curve 1 (400–800 m, the corrugated low rail R on 500–680 m),
+the lab's control wheelset as the hybrid model. The oracles are the line's truth: the true rail roughness of the
+day (what a perfect trolley measures) processed by the same EN 13231-3 code, and, for the alignment, that true
+roughness on true chainage: the estimated profile, moved by the run's stored correction, is cross-correlated with
+it window by window; what is left is the alignment's true error.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from test_estimator_synthetic import control_model
+
+pytestmark = pytest.mark.slow
+
+BANDS = ("30-100", "100-300")
+PATCH = (510.0, 670.0)  # the corrugation patch C1_low on rail R (500-680 m) without its 10 m tapers
+
+
+@pytest.fixture(scope="module")
+def line_store(tmp_path_factory):
+    from lab_data.line.cache import line_campaign_dir
+    from lab_data.line.campaign import FIRST_CURVE_SECTION
+    from receptance.model_io import save_model
+
+    from estimator.monitoring import IngestSpec, MonitoringConfig, MonitoringStore, ingest
+
+    camp = line_campaign_dir("nominal", days=1, runs_per_day=4, section=FIRST_CURVE_SECTION)
+    d = tmp_path_factory.mktemp("line_monitor")
+    save_model(control_model(), d / "hybrid_model.npz")
+    spec = IngestSpec(str(d / "hybrid_model.npz"), str(camp / "sensors.csv"), line=str(camp / "line.json"),
+                      monitoring=MonitoringConfig(n_perturbed=0, uncertainty_runs=0))
+    logging.getLogger("estimator").setLevel(logging.ERROR)
+    st = MonitoringStore(d / "store")
+    res = ingest(sorted((camp / "runs").rglob("*.mf4")), spec, st)
+    return camp, spec, st, res
+
+
+def _truth_windows(camp, date, window_m):
+    from estimator import EstimatorConfig
+    from estimator.monitoring.reference import TrolleyRecord, trolley_windows
+
+    tr = pd.read_parquet(camp / "truth" / "rail_roughness" / f"{date}.parquet")
+    x = tr["chainage_m"].to_numpy()
+    rec = TrolleyRecord("truth", date, float(x[0]), float(np.median(np.diff(x))), ("L", "R"),
+                        np.stack([tr["L_um"].to_numpy(), tr["R_um"].to_numpy()]) * 1e-6)
+    tw = trolley_windows(rec, None, EstimatorConfig(), window_m)
+    return tw[tw["valid_share"] >= 0.99], rec
+
+
+def test_runs_are_placed_on_the_true_chainage_within_10_mm(line_store):
+    from estimator.io import read_run
+    from estimator.monitoring.alignment import ShiftFit, align_profiles, feature_profile
+    from estimator.monitoring.workflow import run_context
+    from estimator.workflow import estimate_run
+
+    camp, spec, st, res = line_store
+    assert len(res.runs) >= 3 and res.runs["aligned"].all()
+    assert (res.runs["alignment_residual_mm"] <= 10.0).all()
+    cfg = spec.monitoring
+    al = st.read("alignment")
+    ctx = run_context(spec)
+    date = res.dates[0]
+    _, rec = _truth_windows(camp, date, cfg.window_m)
+    truth = feature_profile(rec.x, rec.values, rec.rails, cfg.align_band_mm, "truth")
+    errors = []
+    for run_id, src in res.runs[["run_id", "source"]].drop_duplicates().itertuples(index=False):
+        est = estimate_run(read_run(src, ctx.field_model.sensors), ctx.field_model)
+        for (w, kind), p in est.profiles.items():
+            if kind != cfg.model:
+                continue
+            rows = al[(al["run_id"] == run_id) & (al["wheelset"] == w)]
+            # no stage: the day's reference where the line's features did not anchor it (odometer chainage kept)
+            fit = ShiftFit.from_pieces(rows) if len(rows) else ShiftFit.identity()
+            fp = feature_profile(p.chainage_m, p.rail, p.rails, cfg.align_band_mm).shifted(fit)
+            left = align_profiles(fp, truth, cfg)  # what still separates the aligned run from the true chainage
+            assert left.accepted, left.reason
+            x = fp.x[(fp.x > fp.x[0] + 20) & (fp.x < fp.x[-1] - 20)]
+            errors.append(float(np.sqrt(np.mean(left.fit.shift(x) ** 2))))
+    assert len(errors) >= 6
+    assert max(errors) <= 0.010
+
+
+def test_the_day_average_of_the_corrugated_curve_is_the_true_band_peak_to_peak(line_store):
+    from estimator.monitoring import monitor
+    from estimator.monitoring.averaging import energy_mean_db, level_db
+
+    camp, spec, st, res = line_store
+    m = monitor(st, line_file=camp / "line.json")
+    date = res.dates[0]
+    tw, _ = _truth_windows(camp, date, spec.monitoring.window_m)
+    dw = m.day_windows
+    for band in BANDS:
+        d = dw[(dw["rail"] == "R") & (dw["band_mm"] == band) & dw["window_m"].between(PATCH[0], PATCH[1] - 1)]
+        t = tw[(tw["rail"] == "R") & (tw["band_mm"] == band) & tw["window_m"].isin(d["window_m"])]
+        assert len(t) > 100
+        est = energy_mean_db(d[d["window_m"].isin(t["window_m"])]["level_db"])
+        true = energy_mean_db(level_db(t["pk_pk_um"]))
+        assert est == pytest.approx(true, abs=1.0), band
