@@ -1,0 +1,271 @@
+"""The catalogue of field effects: each a physical change of the estimator's transfer functions.
+
+An effect is a small frozen class with named, bounded parameters
+(:class:`Parameter`), a location (which evidence segments its change reaches:
+:meth:`FieldEffect.acts_on`) and :meth:`FieldEffect.apply`, which returns the
+:class:`~estimator.diagnosis.state.FieldState` with the effect's values.
+Adding an effect to the catalogue is one such class and one line in
+:func:`catalogue`.
+
+=====================  ==========================================================  =====================
+effect                 physical change (thesis)                                     parameters
+=====================  ==========================================================  =====================
+``trackform``          the section's pad/subplate stiffness and damping (rail       stiffness factor,
+                       receptance ``A_R``, §2.4, eq. 2.22)                          damping factor
+``discrete_supports``  the rail on discrete sleepers instead of a continuous        (the model switch)
+                       support (§2.4), at the line's sleeper spacing
+``contact_angle``      the contact angles γ_L, γ_R of one curve for the leading     γ on rail L, on R
+                       or trailing wheelset (contact normals ``N``, eq. 2.12)
+``sensor_offset``      an accelerometer's true mounting point (a row of ``A_B``,    the two offsets its
+                       ``u(P+δ) = u(P) + θ×δ``)                                     reading depends on
+``contact_stiffness``  the wheel load behind the Hertz stiffness ``K_H``            wheel load
+``wheel_roughness``    a wheel's own roughness left in the estimate (subtracted     level at 100 mm,
+                       in power; reported, not applied by the estimator)            slope per octave
+=====================  ==========================================================  =====================
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from estimator.diagnosis.state import FieldState, TrackformChange
+
+__all__ = ["Parameter", "FieldEffect", "TrackformEffect", "DiscreteSupports", "ContactAngle", "SensorOffset",
+           "ContactStiffness", "WheelRoughness", "EFFECT_NAMES", "catalogue"]
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A fitted parameter: bounds of the search, the plausible range, log or linear scale, unit."""
+
+    name: str
+    lo: float
+    hi: float
+    nominal: float
+    log: bool = False
+    unit: str = ""
+    plausible: tuple[float, float] | None = None
+    #: a bound that is a physical limit (a contact angle of 0: tread contact) and not the search's edge: a value
+    #: there is a legitimate fit, not a sign that the effect wants more than the search allows
+    physical_lo: bool = False
+
+    def at_bound(self, u: float) -> bool:
+        return (u < 0.01 and not self.physical_lo) or u > 0.99
+
+    def grid(self, n: int) -> np.ndarray:
+        if self.log:
+            return np.geomspace(self.lo, self.hi, n)
+        return np.linspace(self.lo, self.hi, n)
+
+    def to_unit(self, v: float) -> float:
+        """Value → position in [0, 1] of the search (log or linear)."""
+        if self.log:
+            return math.log(v / self.lo) / math.log(self.hi / self.lo)
+        return (v - self.lo) / (self.hi - self.lo)
+
+    def from_unit(self, u: float) -> float:
+        u = min(max(u, 0.0), 1.0)
+        if self.log:
+            return self.lo * (self.hi / self.lo) ** u
+        return self.lo + u * (self.hi - self.lo)
+
+    def is_plausible(self, v: float) -> bool:
+        lo, hi = self.plausible or (self.lo, self.hi)
+        return lo <= v <= hi
+
+
+@dataclass(frozen=True)
+class FieldEffect:
+    """Base of the catalogue (module docstring). ``name`` is the catalogue name, ``where`` the location."""
+
+    name = ""
+    parameters: tuple = ()
+
+    @property
+    def where(self) -> str:
+        return ""
+
+    @property
+    def n_fitted(self) -> int:
+        """Numbers the fit chooses (a model switch counts as one)."""
+        return max(len(self.parameters), 1)
+
+    @property
+    def applied_by_estimator(self) -> bool:
+        return True
+
+    def acts_on(self, seg) -> bool:
+        return True
+
+    def apply(self, state: FieldState, values: dict) -> FieldState:
+        raise NotImplementedError
+
+    def label(self) -> str:
+        return f"{self.name} ({self.where})" if self.where else self.name
+
+
+@dataclass(frozen=True)
+class TrackformEffect(FieldEffect):
+    from_m: float = 0.0
+    to_m: float = 0.0
+    section: str = ""
+    name = "trackform"
+    parameters: tuple = (Parameter("stiffness_factor", 0.1, 10.0, 1.0, log=True, plausible=(0.15, 7.0)),
+                         Parameter("damping_factor", 0.2, 5.0, 1.0, log=True, plausible=(0.25, 4.0)))
+
+    @property
+    def where(self) -> str:
+        return f"section {self.section} {self.from_m:g}-{self.to_m:g} m"
+
+    def acts_on(self, seg) -> bool:
+        return self.from_m <= seg.centre_m <= self.to_m
+
+    def apply(self, state, values):
+        k, c = values["stiffness_factor"], values.get("damping_factor", 1.0)
+        return state.with_trackform_change(TrackformChange(
+            self.from_m, self.to_m, (("pad_stiffness", k), ("subplate_stiffness", k), ("pad_damping", c),
+                                     ("subplate_damping", c))))
+
+
+@dataclass(frozen=True)
+class DiscreteSupports(FieldEffect):
+    name = "discrete_supports"
+    parameters: tuple = ()
+
+    @property
+    def where(self) -> str:
+        return "every trackform, at its sleeper spacing"
+
+    def apply(self, state, values):
+        return state.with_supports("discrete", None)
+
+
+@dataclass(frozen=True)
+class ContactAngle(FieldEffect):
+    curve: str = ""
+    role: str = "any"
+    name = "contact_angle"
+    parameters: tuple = (Parameter("gamma_L", 0.0, 1.4, 0.0, unit="rad", plausible=(0.0, 1.3), physical_lo=True),
+                         Parameter("gamma_R", 0.0, 1.4, 0.0, unit="rad", plausible=(0.0, 1.3), physical_lo=True))
+
+    @property
+    def where(self) -> str:
+        return f"curve {self.curve}, {self.role} wheelset"
+
+    def acts_on(self, seg) -> bool:
+        return seg.curve == self.curve and (self.role == "any" or seg.role == self.role)
+
+    def apply(self, state, values):
+        return state.with_curve_angles(self.curve, self.role, values["gamma_L"], values["gamma_R"])
+
+
+#: the offsets an accelerometer's reading depends on, per measuring direction (δ × d ≠ 0)
+_LEVERS = {"z": ("dx", "dy"), "y": ("dx", "dz"), "x": ("dy", "dz")}
+
+
+@dataclass(frozen=True)
+class SensorOffset(FieldEffect):
+    channel: str = ""
+    direction: str = "z"
+    wheelset: int = 1
+    name = "sensor_offset"
+    parameters: tuple = ()
+
+    def __post_init__(self):
+        if not self.parameters:
+            object.__setattr__(self, "parameters", tuple(
+                Parameter(a, -0.15, 0.15, 0.0, unit="m", plausible=(-0.12, 0.12)) for a in _LEVERS[self.direction]))
+
+    @property
+    def where(self) -> str:
+        return f"channel {self.channel}"
+
+    def acts_on(self, seg) -> bool:
+        return seg.wheelset == self.wheelset
+
+    def apply(self, state, values):
+        d = {a: values.get(a, 0.0) for a in ("dx", "dy", "dz")}
+        return state.with_sensor_offset(self.channel, d["dx"], d["dy"], d["dz"])
+
+
+@dataclass(frozen=True)
+class ContactStiffness(FieldEffect):
+    name = "contact_stiffness"
+    parameters: tuple = (Parameter("wheel_load_N", 1e4, 2e5, 5.5e4, log=True, unit="N", plausible=(2e4, 1.5e5)),)
+
+    def apply(self, state, values):
+        return state.with_wheel_load(values["wheel_load_N"])
+
+
+@dataclass(frozen=True)
+class WheelRoughness(FieldEffect):
+    wheelset: int = 1
+    side: str = "L"
+    name = "wheel_roughness"
+    parameters: tuple = (Parameter("level_db", -40.0, 30.0, -40.0, unit="dB re 1 µm at 100 mm", plausible=(-40, 25)),
+                         Parameter("slope_db_per_octave", -12.0, 12.0, 0.0, unit="dB/octave"))
+
+    @property
+    def where(self) -> str:
+        return f"wheelset {self.wheelset}, vehicle side {self.side}"
+
+    @property
+    def applied_by_estimator(self) -> bool:
+        return False
+
+    def acts_on(self, seg) -> bool:
+        return seg.wheelset == self.wheelset
+
+    def apply(self, state, values):
+        return state.with_wheel_roughness(self.wheelset, self.side, values["level_db"], values["slope_db_per_octave"])
+
+
+EFFECT_NAMES = ("trackform", "discrete_supports", "contact_angle", "sensor_offset", "contact_stiffness",
+                "wheel_roughness")
+
+
+def catalogue(evidence, line, channels, *, names=None, min_section_m: float = 40.0, stretches=()
+              ) -> list[FieldEffect]:
+    """Every candidate of the catalogue at every location the evidence reaches.
+
+    ``trackform``: each line section and trackform section, and each of ``stretches`` (``(from, to)``: where
+    the evidence itself says the track differs, :func:`estimator.diagnosis.diagnose.anomalous_stretches`), at
+    least ``min_section_m`` long and holding evidence; ``contact_angle``: each curve with evidence on its body, per wheelset role; ``sensor_offset``:
+    each acceleration channel of the model (``channels``: table rows with ``name``, ``direction``,
+    ``wheelset``, ``side``); ``wheel_roughness``: each wheel.
+    """
+    names = EFFECT_NAMES if names is None else tuple(names)
+    unknown = sorted(set(names) - set(EFFECT_NAMES))
+    if unknown:
+        from estimator.diagnosis.errors import DiagnosisConfigError
+        raise DiagnosisConfigError(f"unknown field effect(s) {unknown}; the catalogue has {list(EFFECT_NAMES)}")
+    segs = evidence.segments
+    out: list[FieldEffect] = []
+    if "trackform" in names and (line is not None or stretches):
+        line = line if line is not None else type("_NoLine", (), {"sections": (), "trackforms": ()})()
+        places = [(s.id, s.from_m, s.to_m) for s in tuple(line.sections) + tuple(line.trackforms)]
+        places += [(f"{a:g}-{b:g} m (from the evidence)", a, b) for a, b in stretches]
+        seen = set()
+        for sid, a, b in places:
+            if (a, b) in seen:
+                continue
+            seen.add((a, b))
+            if b - a >= min_section_m and any(a <= s.centre_m <= b for s in segs):
+                out.append(TrackformEffect(from_m=a, to_m=b, section=str(sid)))
+    if "discrete_supports" in names:
+        out.append(DiscreteSupports())
+    if "contact_angle" in names:
+        for cid, role in sorted({(s.curve, s.role) for s in segs if s.curve is not None}):
+            out.append(ContactAngle(curve=cid, role=role))
+    if "sensor_offset" in names:
+        for r in channels.itertuples():
+            out.append(SensorOffset(channel=str(r.name), direction=str(r.direction), wheelset=int(r.wheelset)))
+    if "contact_stiffness" in names:
+        out.append(ContactStiffness())
+    if "wheel_roughness" in names:
+        for w, side in sorted({(int(r.wheelset), str(r.side)) for r in channels.itertuples()}):
+            out.append(WheelRoughness(wheelset=w, side=side))
+    return out

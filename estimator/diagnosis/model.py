@@ -1,0 +1,167 @@
+"""The estimate's band levels on the evidence for any field state — the diagnosis's forward model.
+
+For each segment the transfer function the estimator would use there under
+a :class:`~estimator.diagnosis.state.FieldState` (the trackform at the
+segment with the state's section changes, the curve's calibrated angles for
+the wheelset's role, the wheel load's Hertz stiffness, the sensors' mounting
+points, the support model) is assembled by
+:meth:`~estimator.diagnosis.transfer.WheelsetBlocks.transfer` (memoised per
+distinct value), and the band variance of ``T S_a Tᴴ``
+(:mod:`estimator.diagnosis.evidence`) gives the estimate's level. A wheel's
+roughness left in the estimate is removed in power (its spectrum
+``L(λ) = level + slope·log₂(λ/0.1 m)`` dB re 1 µm per one-third-octave band).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from estimator.diagnosis.evidence import Evidence
+from estimator.diagnosis.state import FieldState
+from estimator.diagnosis.transfer import interp_transfer
+
+__all__ = ["Evaluator", "MIN_LEVEL_SHARE"]
+
+#: an estimate's band variance never falls below this share of its value when a wheel's roughness is removed
+MIN_LEVEL_SHARE = 0.01
+_MEMO_MAX = 4096
+
+
+@dataclass(frozen=True, eq=False)
+class Evaluator:
+    """Evidence + the wheelset blocks + the nominal field model: band levels for any state.
+
+    Attributes
+    ----------
+    evidence : Evidence
+    blocks : dict
+        Wheelset → :class:`~estimator.diagnosis.transfer.WheelsetBlocks`.
+    base_trackform : callable
+        Chainage → the line's trackform there (before any calibration).
+    contact : ContactParameters
+        The estimator's contact (the wheel load is the state's when it has one).
+    """
+
+    evidence: Evidence
+    blocks: dict
+    base_trackform: object
+    contact: object
+    _memo: dict = field(default_factory=dict, repr=False)
+
+    def trackform_at(self, state: FieldState, x: float):
+        tf = self.base_trackform(x)
+        for ch in state.trackform_changes:
+            if ch.from_m <= x <= ch.to_m:
+                tf = ch.apply(tf)
+        if state.support_spacing_m is not None:
+            tf = replace(tf, support_spacing=state.support_spacing_m)
+        return tf
+
+    def theta_at(self, state: FieldState, seg) -> tuple[float, float]:
+        if seg.curve is None:
+            return seg.theta
+        got = {r: (gl, gr) for c, r, gl, gr in state.curve_angles if c == seg.curve}
+        g = got.get(seg.role, got.get("any"))
+        if g is None:
+            return seg.theta
+        gamma = dict(zip(("L", "R"), g))
+        # vehicle sides: θ_L = −γ of the rail under the left wheel, θ_R = +γ of the rail under the right one
+        return -gamma[seg.rails[0]], gamma[seg.rails[1]]
+
+    def stiffness(self, state: FieldState) -> float:
+        c = self.contact if state.wheel_load_N is None else replace(self.contact, wheel_load_N=state.wheel_load_N)
+        return float(c.contact().stiffness)
+
+    def transfer(self, state: FieldState, seg) -> np.ndarray:
+        bl = self.blocks[seg.wheelset]
+        tf = self.trackform_at(state, seg.centre_m)
+        th = self.theta_at(state, seg)
+        th = (round(th[0], 6), round(th[1], 6))
+        k = self.stiffness(state)
+        offs = tuple(state.offset_of(c) for c in bl.channels)
+        key = (seg.wheelset, tf, th, round(k, 3), offs, state.supports)
+        T = self._memo.get(key)
+        if T is None:
+            if len(self._memo) > _MEMO_MAX:
+                for k in [k for k in self._memo if k[0] != "bands"]:
+                    del self._memo[k]
+            T = bl.transfer(tf, th, k, offsets=np.array(offs) if any(any(o) for o in offs) else None,
+                            supports=state.supports)
+            self._memo[key] = T
+        return T
+
+    def segment_variance(self, state: FieldState, si: int) -> np.ndarray:
+        """The estimate's band variance (n_rails, n_bands of the segment) [m²]."""
+        seg = self.evidence.segments[si]
+        bl = self.blocks[seg.wheelset]
+        bt = self.evidence.band_table
+        key = ("bands", si)
+        if key not in self._memo:
+            # the frequency lines of each band (× df): the band integral is one matrix product
+            W = np.zeros((seg.f.size, seg.bands.size))
+            df = float(seg.f[1] - seg.f[0])
+            for k, b in enumerate(seg.bands):
+                W[(seg.f >= seg.speed_m_s / bt[b, 2]) & (seg.f < seg.speed_m_s / bt[b, 1]), k] = df
+            used = np.flatnonzero(W.any(axis=1))
+            self._memo[key] = (used, W[used])
+        used, W = self._memo[key]
+        T = interp_transfer(self.transfer(state, seg), bl.df, seg.f[used])
+        psd = np.sum((T @ seg.S[used]) * np.conj(T), axis=-1).real  # diag(T S Tᴴ), (n_f, sides)
+        out = psd.T @ W
+        for w, side, level, slope in state.wheel_roughness:
+            if w != seg.wheelset:
+                continue
+            i = ("L", "R").index(side) if len(seg.rails) == 2 else 0
+            lam = bt[seg.bands, 0]
+            wheel = 1e-12 * 10 ** ((level + slope * np.log2(lam / 0.1)) / 10)
+            out[i] = np.maximum(out[i] - wheel, MIN_LEVEL_SHARE * out[i])
+        return out
+
+    def inversion_floor(self, state: FieldState) -> list[np.ndarray]:
+        """Per segment: the error [dB] the estimator makes even with the right model (its regularisation).
+
+        The roughness the reference measured (flat within each band at its band variance) is sent through the
+        model's own forward map ``H = B D⁻¹`` and back through ``T``: ``10 lg(Σ|T H|² P / Σ P)`` per rail and
+        band. No effect can take the error below it.
+        """
+        out = []
+        bt = self.evidence.band_table
+        for si, seg in enumerate(self.evidence.segments):
+            bl = self.blocks[seg.wheelset]
+            tf = self.trackform_at(state, seg.centre_m)
+            th = self.theta_at(state, seg)
+            offs = [state.offset_of(c) for c in bl.channels]
+            H = bl.forward(tf, th, self.stiffness(state), offsets=np.array(offs), supports=state.supports)
+            T = self.transfer(state, seg)
+            R = np.abs(np.einsum("fim,fmj->fij", T, H)) ** 2  # (n_f, sides, sides) on the blocks' grid
+            e = np.full((len(seg.rails), seg.bands.size), np.nan)
+            for k, b in enumerate(seg.bands):
+                sel = (bl.f >= seg.speed_m_s / bt[b, 2]) & (bl.f < seg.speed_m_s / bt[b, 1])
+                if not sel.any():
+                    continue
+                p = np.nan_to_num(seg.ref_var[:, k]) / sel.sum()  # flat PSD per grid line
+                est = R[sel].sum(axis=0) @ p
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    e[:, k] = 10 * np.log10(est / (p * sel.sum()))
+            out.append(e)
+        return out
+
+    def errors(self, state: FieldState, segments=None) -> list[np.ndarray]:
+        """Per segment: level error ``10 lg(est/ref)`` [dB] (n_rails, n_bands; NaN where no reference)."""
+        idx = range(len(self.evidence.segments)) if segments is None else segments
+        out = []
+        for si in idx:
+            seg = self.evidence.segments[si]
+            v = self.segment_variance(state, si)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                out.append(10 * np.log10(v / seg.ref_var))
+        return out
+
+
+def summary_error(errs: list[np.ndarray], valid: list[np.ndarray]) -> tuple[float, int]:
+    """RMS of the cell errors [dB] and the number of cells."""
+    e = np.concatenate([x[m] for x, m in zip(errs, valid)]) if errs else np.zeros(0)
+    return (float(np.sqrt(np.mean(e ** 2))) if e.size else math.nan), int(e.size)

@@ -1,0 +1,198 @@
+"""Transfer functions re-derived cheaply per candidate: the wheelset's receptances computed once, the rest per call.
+
+The estimator's transfer function of one wheelset (thesis eqs. 2.6, 2.11,
+2.22; :func:`estimator.inversion.wheelset_transfer`) is
+
+    D = Nᵀ(A_W + A_R)N + diag(1/K_H),     B = −Ω² A_B N,     T = D B⁺_α
+
+with ``A_W`` the wheelset receptance between the contact DOFs, ``A_B`` from
+the contact DOFs to the accelerometers, ``A_R`` the rail receptance, ``N``
+the contact normals (angles ``θ_L, θ_R``) and ``K_H`` the Hertz stiffness.
+Of the field effects, none changes the wheelset's modal model: a trackform
+changes ``A_R``, the contact angles ``N``, the wheel load ``K_H``, and an
+accelerometer's mounting point one row of ``A_B`` — and that row is linear in
+the mounting offset ``δ``: the sensor is rigidly bolted to its axlebox node,
+``u(P + δ) = u(P) + θ × δ``, so its reading along ``d`` is
+``d·u(P) + (δ × d)·θ(P)``. :class:`WheelsetBlocks` therefore evaluates the
+modal model once — translations and rotations at every nominal sensor point
+and the contact receptances — on an evenly spaced grid, and
+:meth:`WheelsetBlocks.transfer` assembles ``T`` for any trackform, angles,
+stiffness and offsets in milliseconds, regularised and band-limited exactly
+as the estimator does (:func:`estimator.inversion.regularised_inverse`,
+:func:`estimator.inversion.band_window`). ``tests/test_field_diagnosis.py``
+holds it equal to the estimator's own transfer function.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from estimator.inversion import band_window, model_channels, regularised_inverse, sensor_model
+from receptance.track import track_frf
+
+__all__ = ["WheelsetBlocks", "wheelset_blocks", "interp_transfer", "CONTACT_DOFS"]
+
+#: contact DOFs of the blocks, in this order (thesis DOFs 2, 3, 8, 9)
+CONTACT_DOFS = ("contact_L:y", "contact_L:z", "contact_R:y", "contact_R:z")
+_AXES = {"x": np.array([1.0, 0.0, 0.0]), "y": np.array([0.0, 1.0, 0.0]), "z": np.array([0.0, 0.0, 1.0])}
+
+
+@dataclass(frozen=True, eq=False)
+class WheelsetBlocks:
+    """One wheelset's receptances for one model's channels, on ``f`` (module docstring).
+
+    Attributes
+    ----------
+    kind : str
+    wheelset : int
+    channels : tuple of str
+        Run channel names, in the order of the transfer function's columns.
+    sides : tuple of str
+        Vehicle sides estimated (rows of ``T``).
+    directions : ndarray (m, 3)
+        Measuring direction of each channel (vehicle frame).
+    f : ndarray (n_f,)
+        ``df·(1..n_f)`` [Hz].
+    A_c : ndarray (n_f, 4, 4)
+        Receptance between :data:`CONTACT_DOFS`.
+    U, R : ndarray (n_f, m, 3, 4)
+        Translation and rotation receptances at each channel's nominal point from the contact DOFs.
+    fs, f_lo, f_hi, alpha : float
+        Sampling rate, inversion band and Tikhonov parameter (the estimator's).
+    """
+
+    kind: str
+    wheelset: int
+    channels: tuple[str, ...]
+    sides: tuple[str, ...]
+    directions: np.ndarray
+    f: np.ndarray
+    A_c: np.ndarray
+    U: np.ndarray
+    R: np.ndarray
+    fs: float
+    f_lo: float
+    f_hi: float
+    alpha: float
+    window: np.ndarray = field(repr=False, default=None)
+    _track_cache: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def df(self) -> float:
+        return float(self.f[1] - self.f[0])
+
+    def rail(self, trackform, supports: str = "continuous") -> tuple[np.ndarray, np.ndarray]:
+        """``(A_RY, A_RZ)`` on the grid for a trackform (memoised)."""
+        key = (trackform, supports)
+        if key not in self._track_cache:
+            tr = track_frf(self.f, trackform, supports=supports)
+            self._track_cache[key] = (tr.data[1, 1].copy(), tr.data[0, 0].copy())
+        return self._track_cache[key]
+
+    def sensor_rows(self, offsets: np.ndarray | None = None) -> np.ndarray:
+        """``A_B`` (n_f, m, 4) with each channel moved by ``offsets`` (m, 3) [m] from its nominal point."""
+        d = self.directions
+        if "rows" not in self._track_cache:
+            self._track_cache["rows"] = (d[None, :, :, None] * self.U).sum(axis=2)
+        rows = self._track_cache["rows"]
+        if offsets is not None and np.any(offsets):
+            lever = np.cross(np.asarray(offsets, float), d)  # (δ × d): the rotation's share of the reading
+            rows = rows + (lever[None, :, :, None] * self.R).sum(axis=2)
+        return rows
+
+    def transfer(self, trackform, theta: tuple[float, float] = (0.0, 0.0), contact_stiffness: float = 1e9, *,
+                 offsets: np.ndarray | None = None, supports: str = "continuous") -> np.ndarray:
+        """``T`` (n_f, n_sides, m) regularised and band-limited as the estimator's (module docstring)."""
+        return self._assemble(trackform, theta, contact_stiffness, offsets, supports, forward=False)
+
+    def forward(self, trackform, theta: tuple[float, float] = (0.0, 0.0), contact_stiffness: float = 1e9, *,
+                offsets: np.ndarray | None = None, supports: str = "continuous") -> np.ndarray:
+        """The forward map ``H = B D⁻¹`` (n_f, m, n_sides): irregularity at the wheels → accelerations.
+
+        (Sign: an irregularity that compresses the contact pushes the wheel up, as in the estimator's
+        inverse; ``T H`` is the identity in the inversion band up to regularisation.)
+        """
+        return self._assemble(trackform, theta, contact_stiffness, offsets, supports, forward=True)
+
+    def _assemble(self, trackform, theta, contact_stiffness, offsets, supports, *, forward: bool) -> np.ndarray:
+        ary, arz = self.rail(trackform, supports)
+        A_B = self.sensor_rows(offsets)
+        Om2 = (2 * np.pi * self.f) ** 2
+        c = 1.0 / float(contact_stiffness)
+        if self.kind == "half":
+            n_f = self.f.size
+            T = np.zeros((n_f, len(self.sides), len(self.sides)), complex)
+            for i, s in enumerate(self.sides):
+                z = 1 if s == "L" else 3
+                D = (self.A_c[:, z, z] + arz + c)[:, None, None]
+                B = (-Om2 * A_B[:, i, z])[:, None, None]
+                if forward:
+                    T[:, i, i] = B[:, 0, 0] / D[:, 0, 0]
+                    continue
+                Ti, _, _ = regularised_inverse(D, B, self.f, self.alpha)
+                T[:, i, i] = Ti[:, 0, 0]
+        else:
+            th = (0.0, 0.0) if self.kind == "vertical" else (round(theta[0], 5), round(theta[1], 5))
+            sl, cl, sr, cr = math.sin(th[0]), math.cos(th[0]), math.sin(th[1]), math.cos(th[1])
+            N = np.array([[-sl, 0.0], [cl, 0.0], [0.0, -sr], [0.0, cr]])
+            lateral = th[0] != 0.0 or th[1] != 0.0
+            rail = np.stack([ary if lateral else np.zeros_like(ary), arz, ary if lateral else np.zeros_like(ary),
+                             arz], axis=1)
+            A = self.A_c + rail[:, :, None] * np.eye(4)[None]
+            D = N.T @ A @ N + c * np.eye(2)[None]
+            B = -Om2[:, None, None] * (A_B @ N)
+            if forward:
+                return B @ np.linalg.inv(D)
+            T, _, _ = regularised_inverse(D, B, self.f, self.alpha)
+        if forward:
+            return T
+        return T * self.window[:, None, None]
+
+
+def wheelset_blocks(model, channels: pd.DataFrame, kind: str, fs: float, *, f_lo: float, f_hi: float, alpha: float,
+                    df: float) -> WheelsetBlocks:
+    """The receptance blocks of one wheelset's sensors for one model (module docstring).
+
+    Parameters
+    ----------
+    model : ModalModel
+        The wheelset in service (points ``contact_L/R``, ``axlebox_L/R``).
+    channels : pandas.DataFrame
+        The wheelset's rows of the run's channel table (``Run.wheelset_channels``).
+    kind : {"half", "vertical", "vertical_lateral"}
+    fs, f_lo, f_hi, alpha : float
+        As the estimator's :class:`~estimator.workflow.FieldModel` uses them.
+    df : float
+        Grid step [Hz]; the grid ends at ``min(fs/2, f_hi·2^(1/6))`` (``T`` is zero above).
+    """
+    rows, sides = model_channels(kind, channels)
+    sub = channels.loc[rows].reset_index(drop=True)
+    m_w, labels = sensor_model(model, sub)
+    top = min(0.5 * fs, f_hi * 2 ** (1 / 6) + 2 * df)
+    f = df * np.arange(1, int(np.floor(top / df)) + 1)
+    names = [str(n) for n in sub["name"]]
+    outputs = list(CONTACT_DOFS) + [f"{n}:{a}" for n in names for a in ("x", "y", "z", "rx", "ry", "rz")]
+    H = np.moveaxis(m_w.receptance(outputs, list(CONTACT_DOFS), f).data, 2, 0)  # (n_f, out, 4)
+    m = len(names)
+    A_c = H[:, :4, :]
+    S = H[:, 4:, :].reshape(f.size, m, 6, 4)
+    dirs = np.stack([_AXES[str(d)] for d in sub["direction"]])
+    return WheelsetBlocks(kind=kind, wheelset=int(channels["wheelset"].iloc[0]), channels=tuple(names),
+                          sides=tuple(sides), directions=dirs, f=f, A_c=A_c, U=S[:, :, :3, :].copy(),
+                          R=S[:, :, 3:, :].copy(), fs=float(fs), f_lo=float(f_lo), f_hi=float(f_hi),
+                          alpha=float(alpha), window=band_window(f, f_lo, f_hi, 0.5 * fs))
+
+
+def interp_transfer(T: np.ndarray, df: float, freqs: np.ndarray) -> np.ndarray:
+    """``T`` on ``df·(1..n)`` linearly interpolated at ``freqs`` (0 outside the grid)."""
+    pos = np.asarray(freqs, float) / df - 1.0
+    n = T.shape[0]
+    i = np.clip(np.floor(pos).astype(np.int64), 0, n - 2)
+    w = (pos - i)[:, None, None]
+    out = T[i] * (1 - w) + T[i + 1] * w
+    out[(pos < 0) | (pos > n - 1)] = 0.0
+    return out
