@@ -12,12 +12,24 @@ accelerance, 11 velocity -> mobility, 8 displacement -> receptance; the
 denominator must be a force, 13 or 9, or unknown, 0). When the file leaves the
 ordinate type unknown (0), the ordinate units label decides (``m/s^2/N``,
 ``m/s/N``, ``m/N``); otherwise pass ``quantity=``. Data are taken as SI.
+
+Exponential window.  An H1 estimated through an exponential window of decay
+``a`` carries poles shifted by ``−a``; the identification removes the shift
+when it knows ``a`` (:attr:`~ema.frf.FrequencyResponse.exp_window_decay`).
+UFF58 has no field for it, so :func:`write_frf_uff` records it in ID line 3
+as ``exp_window_decay=<a> 1/s`` and :func:`read_frf_uff` reads it back from
+there (any writer may follow the convention); otherwise pass
+``exp_window_decay=`` (0 for FRFs without window or already corrected).
+
+:func:`write_frf_uff` writes FRFs (and their coherence) the way acquisition
+systems export them, through pyuff: ASCII or binary (58b), double precision.
 """
 
 from __future__ import annotations
 
 import logging
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -27,7 +39,7 @@ from .channels import read_channels, validate_channels
 from .frf import QUANTITIES, FrequencyResponse
 from .hammer_io import ChannelMismatchError, FunctionTypeError, SamplingError, UFFReadError, _read_uff_sets
 
-__all__ = ["read_frf_uff"]
+__all__ = ["read_frf_uff", "write_frf_uff"]
 
 log = logging.getLogger("ema")
 
@@ -38,6 +50,9 @@ _UNITS_TO_QUANTITY = {
     "m/n": "receptance",
 }
 _FORCE_SPECS = {0, 9, 13}
+_QUANTITY_TO_SPEC = {"accelerance": 12, "mobility": 11, "receptance": 8}
+_QUANTITY_UNITS = {"accelerance": "m/s^2/N", "mobility": "m/s/N", "receptance": "m/N"}
+_DECAY = re.compile(r"exp_window_decay\s*=\s*([0-9.eE+-]+)")
 
 
 def _dir_label(code: int) -> str:
@@ -46,7 +61,8 @@ def _dir_label(code: int) -> str:
     return ("+" if code > 0 else "-") + ("x", "y", "z", "rx", "ry", "rz")[abs(code) - 1]
 
 
-def read_frf_uff(path: str | os.PathLike, channels_csv=None, *, quantity: str | None = None) -> FrequencyResponse:
+def read_frf_uff(path: str | os.PathLike, channels_csv=None, *, quantity: str | None = None,
+                 exp_window_decay: float | None = None) -> FrequencyResponse:
     """Read FRFs (UFF58, function type 4) into a :class:`~ema.frf.FrequencyResponse`.
 
     Parameters
@@ -61,6 +77,9 @@ def read_frf_uff(path: str | os.PathLike, channels_csv=None, *, quantity: str | 
         for a scalar / off-axis direction) in file order.
     quantity : {"accelerance", "mobility", "receptance"}, optional
         Overrides the quantity read from the file.
+    exp_window_decay : float, optional
+        Exponential-window decay of the FRFs [1/s]; default: the
+        ``exp_window_decay=`` note of ID line 3 (module docstring), else 0.
 
     Returns
     -------
@@ -212,7 +231,125 @@ def read_frf_uff(path: str | os.PathLike, channels_csv=None, *, quantity: str | 
                     coh = None
     if not np.all(np.isfinite(data)):
         raise UFFReadError(f"{src}: the FRF data contain NaN or infinite values")
+    if exp_window_decay is None:
+        notes = {float(m.group(1)) for d in frfs.values() for m in [_DECAY.search(str(d.get("id3", "")))] if m}
+        if len(notes) > 1:
+            raise UFFReadError(f"{src}: the FRFs record different exponential windows {sorted(notes)} 1/s in ID line 3")
+        exp_window_decay = notes.pop() if notes else 0.0
+    if not (np.isfinite(exp_window_decay) and exp_window_decay >= 0):
+        raise ValueError(f"exp_window_decay must be a finite decay >= 0 [1/s], got {exp_window_decay!r}")
     frf = FrequencyResponse(freqs_hz=x0, data=data, outputs=tuple(out_labels), inputs=tuple(in_labels),
-                            quantity=quantity, coherence=coh, channels=channels, history=(f"read_frf_uff {src}",))
+                            quantity=quantity, coherence=coh, channels=channels, history=(f"read_frf_uff {src}",),
+                            exp_window_decay=float(exp_window_decay))
     log.info("read %s: %s", src, frf)
     return frf
+
+
+_BINARY_HEADER = re.compile(rb"(?m)^    58b(\s*\d+)(\s*\d+)(\s*\d+)( *\d+)")
+
+
+def _fix_binary_byte_counts(path: Path, n_bytes: list[int]) -> None:
+    """Write the true data size into each 58b header: pyuff 2.5 writes ``8 * num_pts`` bytes for complex data too
+    (it writes ``16 * num_pts``), and a strict reader frames datasets by that count."""
+    raw = path.read_bytes()
+    headers = list(_BINARY_HEADER.finditer(raw))
+    if len(headers) != len(n_bytes):
+        raise OSError(f"{path}: expected {len(n_bytes)} binary 58 headers after writing, found {len(headers)}")
+    out, last = [], 0
+    for m, n in zip(headers, n_bytes):
+        out.append(raw[last:m.start(4)])
+        out.append(f"{n:12d}".encode())
+        last = m.end(4)
+    out.append(raw[last:])
+    path.write_bytes(b"".join(out))
+
+
+def _direction_code(d) -> int:
+    """UFF direction code of a unit vector: ±1..3 along an axis, 0 (scalar) for an oblique one."""
+    d = np.asarray(d, float)
+    k = int(np.argmax(np.abs(d)))
+    if np.isclose(abs(d[k]), 1.0, atol=1e-9):
+        return int(np.sign(d[k])) * (k + 1)
+    return 0
+
+
+def write_frf_uff(frf: FrequencyResponse, path: str | os.PathLike, channels=None, *, binary: bool = False,
+                  coherence: bool = True, description: str = "railmodal FRF export") -> Path:
+    """Write single-reference FRFs as UFF58 function type 4 (and their coherence as type 6), as a lab system would.
+
+    Parameters
+    ----------
+    frf : FrequencyResponse
+        One input; quantity accelerance, mobility or receptance.
+    path : str or os.PathLike
+        The file written (overwritten).
+    channels : pandas.DataFrame or path, optional
+        The channel table giving each output's node and direction and the
+        force node (default: ``frf.channels`` and the table's force row are
+        needed, so give the table when ``frf.channels`` lacks the force).
+    binary : bool
+        Binary 58b instead of ASCII.
+    coherence : bool
+        Also write the coherence (when the FRF has one).
+    description : str
+        ID line 1.
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    ValueError
+        Several inputs, an output without a channel row, no force row.
+    """
+    import pyuff  # third-party writer, imported where needed
+
+    if frf.n_in != 1:
+        raise ValueError(f"write_frf_uff writes single-reference FRFs, got {frf.n_in} inputs")
+    if channels is None:
+        raise ValueError("give the channel table (channels=): it holds the nodes, directions and the force row")
+    table = channels if isinstance(channels, pd.DataFrame) else read_channels(channels)
+    acc = table[table["quantity"] == "acceleration"].set_index(table.loc[table["quantity"] == "acceleration",
+                                                                         "name"].astype(str))
+    force = table[table["quantity"] == "force"]
+    if len(force) != 1:
+        raise ValueError(f"the channel table must have one force row, found {len(force)}")
+    missing = [o for o in frf.outputs if o not in acc.index]
+    if missing:
+        raise ValueError(f"outputs {missing} have no acceleration row in the channel table")
+    f = np.asarray(frf.freqs_hz, float)
+    even = f.size > 1 and np.allclose(np.diff(f), f[1] - f[0], rtol=1e-9, atol=0)
+    ref = force.iloc[0]
+    ref_dir = _direction_code((ref["dx"], ref["dy"], ref["dz"]))
+    spec = _QUANTITY_TO_SPEC[frf.quantity]
+    note = f"exp_window_decay={float(frf.exp_window_decay)!r} 1/s"
+    sets = []
+    for i, name in enumerate(frf.outputs):
+        row = acc.loc[name]
+        common = dict(type=58, binary=int(bool(binary)), id1=description[:80], id2=f"channel {name}"[:80], id3=note,
+                      id4="NONE", id5="NONE", load_case_id=0, rsp_ent_name=str(name)[:10], rsp_node=int(row["node"]),
+                      rsp_dir=_direction_code((row["dx"], row["dy"], row["dz"])), ref_ent_name=str(ref["name"])[:10],
+                      ref_node=int(ref["node"]), ref_dir=ref_dir, abscissa_spacing=int(even),
+                      abscissa_min=float(f[0]), abscissa_inc=float(f[1] - f[0]) if f.size > 1 else 0.0,
+                      abscissa_spec_data_type=18, abscissa_axis_units_lab="Hz", x=f, num_pts=f.size)
+        sets.append(dict(common, func_type=4, ver_num=1, ord_data_type=6, data=np.asarray(frf.data[i, 0], complex),
+                         ordinate_spec_data_type=spec, ordinate_axis_units_lab=_QUANTITY_UNITS[frf.quantity],
+                         orddenom_spec_data_type=13, orddenom_axis_units_lab="N"))
+        if coherence and frf.coherence is not None:
+            sets.append(dict(common, func_type=6, ver_num=1, ord_data_type=4,
+                             data=np.asarray(frf.coherence[i, 0], float), ordinate_spec_data_type=0,
+                             ordinate_axis_units_lab="NONE", orddenom_spec_data_type=0))
+    out = Path(os.fspath(path))
+    if out.exists():
+        out.unlink()
+    try:
+        pyuff.UFF(str(out)).write_sets(sets, mode="add")
+    except Exception as exc:  # pyuff raises bare Exception; name the file
+        raise OSError(f"{out}: pyuff could not write the FRF datasets ({exc})") from exc
+    if binary:
+        _fix_binary_byte_counts(out, [8 * d["num_pts"] * (2 if np.iscomplexobj(d["data"]) else 1) for d in sets])
+    log.info("wrote %d FRF datasets%s to %s (%s)", len(frf.outputs),
+             " and their coherence" if coherence and frf.coherence is not None else "", out,
+             "binary" if binary else "ASCII")
+    return out

@@ -2,14 +2,23 @@
 
 ``railmodal demo``                      simulate a virtual-lab campaign and run the whole lab workflow on it (report)
 ``railmodal lab simulate``              write a campaign of one scenario (``--scenario NAME --out DIR``)
+``railmodal lab simulate-line``         write a virtual-line campaign (``--scenario NAME --days N --runs-per-day M --out DIR``)
 ``railmodal lab scenarios``             list the virtual-lab scenarios
 ``railmodal lab render``                pictures of the design wheelset and its modes
-``railmodal lab identify``              hammer-test files -> identified modes, stabilisation and FRF plots
+``railmodal lab identify``              hammer-test or FRF files -> identified modes, stabilisation and FRF plots
 ``railmodal lab pair``                  identified modes + FE export -> pairing table (thesis Table 3.1) and renders
 ``railmodal lab diagnose``              hammer tests + FE export -> identify, pair, hybrid model, compare, diagnose;
                                         diagnosis.json and report.html
 ``railmodal model track``               rail point receptances (thesis §2.4) -> track_receptance.csv and plot
 ``railmodal model build``               pairing + FE export + points -> hybrid wheelset model, transfer functions
+``railmodal field estimate``            one field run (MDF 4) + sensor table + hybrid model -> rail roughness per rail,
+                                        EN 13231-3 indexes, EN 15610 spectra, report
+``railmodal field ingest``              runs -> monitoring store (aligned, averaged, intervals; Dask)
+``railmodal field monitor``             store -> trends, grinding events, forecast table, HTML report
+``railmodal field compare-reference``   trolley records against the train's day averages, band errors per rail
+``railmodal field reprocess``           the store's runs again with a new wheelset model (both versions kept)
+``railmodal field diagnose``            calibration site runs + trolley -> missing field effects fitted, ranked,
+                                        validated; field_diagnosis.json, report.html, calibrated model
 """
 
 from __future__ import annotations
@@ -20,8 +29,14 @@ import sys
 import time
 from pathlib import Path
 
+from ema.identify import MAX_ORDER
+from railmodal.arguments import band_action, bounded_float, bounded_int, existing_file, existing_folder, output_folder
 from railmodal.diagnose_command import add_diagnose_parser, summarise
+from railmodal.field_commands import add_field_commands
+from railmodal.field_diagnose_command import add_field_diagnose_command
+from railmodal.line_commands import add_line_commands
 from railmodal.model_commands import add_model_commands
+from railmodal.monitor_commands import add_monitor_commands
 
 __all__ = ["main"]
 
@@ -72,7 +87,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
     t0 = time.perf_counter()
     files = simulate(args.scenario, args.out, progress=None if args.quiet else _progress, fe_max_hz=args.fe_max_hz,
-                     fe_export_hz=args.fe_export_hz,
+                     fe_export_hz=args.fe_export_hz, fe_style=args.fe_style,
                      seed=args.seed, n_hits=args.hits)
     _describe_campaign(files)
     print(f"done in {time.perf_counter() - t0:.1f} s")
@@ -129,31 +144,47 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     from ema.modes_io import write_modeset
     from ema.plot import plot_stabilisation, plot_synthesis
 
+    from railmodal.output import staged_output
+
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     band = tuple(args.band)
     t0 = time.perf_counter()
     step = (lambda msg: None) if args.quiet else _progress
-    step(f"reading {args.hammer}")
-    test = ema.read_hammer(args.hammer, args.channels)
-    step(f"{len(test.hits)} hits x {test.responses.shape[1]} channels at {test.fs:g} Hz; screening hits and "
-         f"estimating H1 in {band[0]:g}-{band[1]:g} Hz")
-    frf = ema.estimate_frf(test, band_hz=band)
-    setup = args.setup or _setup_name(test, Path(args.hammer))
+    if args.frf is not None:  # FRFs exported by the acquisition system: nothing to screen or average
+        step(f"reading FRFs {args.frf}")
+        table = ema.read_channels(args.channels)
+        frf = ema.read_frf_uff(args.frf, table).as_quantity("accelerance").select(band_hz=band)
+        screening = None
+        named = "setup" in table and table["setup"].notna().any()
+        setup = args.setup or (str(table["setup"].dropna().iloc[0]) if named else Path(args.frf).stem)
+    else:
+        step(f"reading {args.hammer}")
+        test = ema.read_hammer(args.hammer, args.channels)
+        step(f"{len(test.hits)} hits x {test.responses.shape[1]} channels at {test.fs:g} Hz; screening hits and "
+             f"estimating H1 in {band[0]:g}-{band[1]:g} Hz")
+        screening = ema.screen_hits(test, band_hz=band)
+        frf = ema.estimate_frf(test, band_hz=band, screening=screening)
+        setup = args.setup or _setup_name(test, Path(args.hammer))
     step(f"identifying (LSCE to order {args.max_order}, automatic pole selection, LSFD)")
     result = ema.identify(frf, band_hz=band, max_order=args.max_order, setup=setup)
     modes = result.modes
-    write_modeset(modes, out)
-    fig = plot_stabilisation(result.diagram, frf=frf)
-    fig.savefig(out / "stabilisation.png", dpi=120)
-    plt.close(fig)
-    fig = plot_synthesis(frf, result.synthesis)
-    fig.savefig(out / "synthesis.png", dpi=120)
-    plt.close(fig)
+    with staged_output(out) as tmp:  # write last: --out gets the results only when everything succeeded
+        write_modeset(modes, tmp)
+        fig = plot_stabilisation(result.diagram, frf=frf)
+        fig.savefig(tmp / "stabilisation.png", dpi=120)
+        plt.close(fig)
+        fig = plot_synthesis(frf, result.synthesis)
+        fig.savefig(tmp / "synthesis.png", dpi=120)
+        plt.close(fig)
+        if screening is not None:
+            screening.to_frame().to_csv(tmp / "screening.csv", index=False)
+    for r in (screening.rejections if screening is not None else ()):
+        print(f"rejected: {r}")
     print(f"{len(modes)} modes identified in {setup!r} ({time.perf_counter() - t0:.1f} s):")
     for f, z, m in zip(modes.freqs_hz, modes.zeta, modes.mpc):
         print(f"  {f:9.3f} Hz  zeta {100 * z:.4f} %  MPC {m:.3f}")
-    print(f"written: {out / 'modes.csv'}, {out / 'modes.uff'}, {out / 'stabilisation.png'}, {out / 'synthesis.png'}")
+    print(f"written: {out / 'modes.csv'}, {out / 'modes.uff'}, {out / 'stabilisation.png'}, {out / 'synthesis.png'}"
+          + (f", {out / 'screening.csv'}" if screening is not None else ""))
     return 0
 
 
@@ -176,24 +207,27 @@ def _cmd_pair(args: argparse.Namespace) -> int:
     from ema.pairing import pair_modes
     from ema.plot_pairing import plot_mac, render_pair
 
+    from railmodal.output import staged_output
+
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     step = (lambda msg: None) if args.quiet else _progress
     sets = [read_modeset(d) for d in args.modes]
     test = merge_setups(sets) if len(sets) > 1 else sets[0]
     step(f"{len(test)} test modes from {len(sets)} setup(s); reading {args.fem}")
-    fe = fem_import.read(args.fem)
+    fe, where = fem_import.read_with_geometry(args.fem, args.geometry)
+    step(where)
     pairing = pair_modes(test, fe, threshold=args.mac_min)
-    pairing.to_csv(out / "pairing.csv")
-    fig = plot_mac(pairing, test, fe)
-    fig.savefig(out / "mac.png", dpi=120)
-    plt.close(fig)
-    for k, p in enumerate(pairing.pairs):
-        name = f"pair_{k + 1:02d}_{test.freqs_hz[p.test_index]:.0f}Hz.png"
-        fe_label = "+".join(str(j + 1) for j in p.fe_indices)
-        render_pair(test, p.test_index, fe, p.fe_shape, out / name,
-                    title=f"FE mode {fe_label}: {fe.freqs_hz[p.fe_indices[0]]:.2f} Hz, MAC {p.mac:.3f}")
-        step(f"rendered {name}")
+    with staged_output(out) as tmp:  # write last: --out gets the results only when everything succeeded
+        pairing.to_csv(tmp / "pairing.csv")
+        fig = plot_mac(pairing, test, fe)
+        fig.savefig(tmp / "mac.png", dpi=120)
+        plt.close(fig)
+        for k, p in enumerate(pairing.pairs):
+            name = f"pair_{k + 1:02d}_{test.freqs_hz[p.test_index]:.0f}Hz.png"
+            fe_label = "+".join(str(j + 1) for j in p.fe_indices)
+            render_pair(test, p.test_index, fe, p.fe_shape, tmp / name,
+                        title=f"FE mode {fe_label}: {fe.freqs_hz[p.fe_indices[0]]:.2f} Hz, MAC {p.mac:.3f}")
+            step(f"rendered {name}")
     print(pairing.table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     print(f"written: {out / 'pairing.csv'}, {out / 'mac.png'} and {len(pairing.pairs)} renders")
     return 0
@@ -220,6 +254,13 @@ def _cmd_demo(args: argparse.Namespace) -> int:
                                    progress=step)
         for line in summarise(result):
             print(line)
+        if not args.no_field:
+            from railmodal.field_commands import demo_field_step
+
+            print("field step: a short virtual-line run (curve 1) estimated with the model the lab workflow built")
+            model = result.model if result.model is not None else result.paths["model"]
+            for line in demo_field_step(out, model, args.scenario, step):
+                print(line)
     print(f"done in {time.perf_counter() - t0:.1f} s")
     return 0
 
@@ -237,6 +278,8 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--scenario", default="rig", choices=_scenario_names(),
                       help="virtual-lab scenario (default: rig, whose hidden crane springs the diagnosis finds)")
     demo.add_argument("--no-diagnose", action="store_true", help="only simulate the campaign and render pictures")
+    demo.add_argument("--no-field", action="store_true",
+                      help="skip the field step (a short virtual-line run estimated with the lab's model)")
     demo.set_defaults(func=_cmd_demo)
 
     lab = sub.add_parser("lab", help="virtual wheelset lab")
@@ -249,6 +292,10 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--fe-export-hz", type=float, default=None,
                      help="highest design FE mode exported if above --fe-max-hz (e.g. 2000: the basis structural "
                           "modifications such as bearings need)")
+    sim.add_argument("--fe-style", choices=("mesh", "beam"), default="mesh",
+                     help="style of the design FE export: mesh (the lab's 3D shell/beam mesh, default) or beam (a "
+                          "design office's rotor-dynamics model: beam axle, lumped hubs, discs and axleboxes, rims "
+                          "on web springs, its own node numbers); the hammer data are the same")
     sim.add_argument("--seed", type=int, default=1863, help="random seed of hits and noise")
     sim.add_argument("--hits", type=int, default=6, help="hits per setup (>= 5)")
     sim.set_defaults(func=_cmd_simulate)
@@ -258,23 +305,42 @@ def build_parser() -> argparse.ArgumentParser:
     rd.add_argument("--out", required=True)
     rd.add_argument("--modes", type=int, default=6)
     rd.set_defaults(func=_cmd_render)
-    ident = lab_sub.add_parser("identify", help="identify modes from a hammer-test file")
-    ident.add_argument("--hammer", required=True, help="UFF58 time histories (one dataset per channel per hit)")
-    ident.add_argument("--channels", required=True, help="channel table CSV")
-    ident.add_argument("--band", nargs=2, type=float, default=[10.0, 500.0], metavar=("LOW", "HIGH"))
-    ident.add_argument("--max-order", type=int, default=100)
+    ident = lab_sub.add_parser("identify", help="identify modes from a hammer-test file or exported FRFs")
+    source = ident.add_mutually_exclusive_group(required=True)
+    source.add_argument("--hammer", type=existing_file("--hammer", "hammer-test (UFF58)"),
+                        help="UFF58 time histories (one dataset per channel per hit)")
+    source.add_argument("--frf", type=existing_file("--frf", "FRF (UFF58)"),
+                        help="UFF58 FRFs as an acquisition system exports them (function type 4, accelerance/"
+                             "mobility/receptance, ASCII or binary, coherence optional), in place of --hammer")
+    ident.add_argument("--channels", required=True, type=existing_file("--channels", "channel table"),
+                       help="channel table CSV")
+    ident.add_argument("--band", nargs=2, type=bounded_float("--band", 0.0, 1e5, unit="Hz"),
+                       action=band_action("--band", 0.0, 1e5), default=[10.0, 500.0], metavar=("LOW", "HIGH"),
+                       help="identification band [Hz], 0 <= LOW < HIGH <= fs/2 (default 10 500)")
+    ident.add_argument("--max-order", type=bounded_int("--max-order", 1, MAX_ORDER), default=100,
+                       help=f"largest LSCE order, 1 to {MAX_ORDER} (default 100)")
     ident.add_argument("--setup", default=None, help="setup name (default: the table's 'setup' column or file name)")
-    ident.add_argument("--out", required=True)
+    ident.add_argument("--out", required=True, type=output_folder("--out"))
     ident.set_defaults(func=_cmd_identify)
     pair = lab_sub.add_parser("pair", help="pair identified modes with an FE export by MAC")
     pair.add_argument("--modes", required=True, action="append",
+                      type=existing_folder("--modes", "modes (written by 'lab identify')"),
                       help="modes folder written by 'lab identify' (repeat for several setups: they are merged)")
-    pair.add_argument("--fem", required=True, help="FE modes file (UFF 2411/2412/55 or Nastran .pch)")
-    pair.add_argument("--mac-min", type=float, default=0.8)
-    pair.add_argument("--out", required=True)
+    pair.add_argument("--fem", required=True, type=existing_file("--fem", "FE modes"),
+                      help="FE modes file (UFF 2411/2412/55 or Nastran .pch)")
+    pair.add_argument("--geometry", default=None, type=existing_file("--geometry", "geometry"),
+                      help="node coordinates for an FE file without them (a Nastran punch): a UFF with dataset 2411 "
+                           "or a Nastran bulk data file with GRID cards (default: a companion file of the same name)")
+    pair.add_argument("--mac-min", type=bounded_float("--mac-min", 0.0, 1.0, lo_open=True), default=0.8,
+                      help="smallest MAC of a pair, in (0, 1] (default 0.8)")
+    pair.add_argument("--out", required=True, type=output_folder("--out"))
     pair.set_defaults(func=_cmd_pair)
     add_diagnose_parser(lab_sub)
+    add_line_commands(lab_sub)
     add_model_commands(sub)
+    add_field_commands(sub)
+    add_monitor_commands(sub)
+    add_field_diagnose_command(sub)
     return parser
 
 
@@ -284,8 +350,12 @@ def main(argv: list[str] | None = None) -> int:
     _setup_logging(-1 if args.quiet else args.verbose - 1)
     try:
         return args.func(args)
-    except (ValueError, KeyError, OSError, RuntimeError) as exc:
+    except (ValueError, KeyError, OSError, RuntimeError, ArithmeticError) as exc:
         print(f"railmodal: error: {exc}", file=sys.stderr)
+        return 1
+    except MemoryError:
+        print("railmodal: error: out of memory; ask for a smaller problem (fewer lines, orders or models)",
+              file=sys.stderr)
         return 1
 
 

@@ -129,6 +129,10 @@ def _cmd_build(args: argparse.Namespace) -> int:
     check_points(fe, points, source=str(args.points))
     tables = [read_channels(c) for c in channels]
     free = hybrid_model(fe, args.pairing, points=points, keep_fe=args.keep_fe, default_zeta=args.default_zeta)
+    if args.diagnosed is not None:  # the lab's diagnosed model: its wheelset properties, not its test artefacts
+        from receptance.model_io import load_service_model
+
+        free = load_service_model(args.diagnosed, fe=fe)
     for table in tables:
         shapes_at_channels(free.fe, table)  # every sensor near its fe_node (named in the error)
     # ---- work
@@ -274,6 +278,9 @@ def add_model_commands(sub) -> None:
                    help="FE-only modes to keep: none (thesis Table 3.1 policy), unpaired, all, or numbers 20,21")
     b.add_argument("--default-zeta", type=bounded_float("--default-zeta", 0.0, 1.0, hi_open=True), default=1e-3,
                    help="damping ratio of kept FE-only modes, in [0, 1) (default 0.001)")
+    b.add_argument("--diagnosed", default=None, type=existing_file("--diagnosed", "diagnosed model"),
+                   help="hybrid_model.npz of 'lab diagnose' (same FE export): the model keeps the wheelset "
+                        "properties the diagnosis found (bearings, press fits), not its test artefacts (rig, sensors)")
     b.add_argument("--free-free", action="store_true", help="do not add the primary suspension")
     b.add_argument("--band", nargs=2, type=bounded_float("--band", 0.0, 1e5, lo_open=True, unit="Hz"),
                    action=band_action("--band", 0.0, 1e5), default=[1.0, 500.0], metavar=("LOW", "HIGH"),

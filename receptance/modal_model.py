@@ -27,7 +27,9 @@ modes above it remain the basis of the modifications.
 
 from __future__ import annotations
 
+import functools
 import logging
+import weakref
 from dataclasses import dataclass, field, replace
 from typing import Mapping, Sequence
 
@@ -52,6 +54,9 @@ _BODY_AXES = {"x": 0, "y": 1, "z": 2, "rx": 3, "ry": 4, "rz": 5}
 _DECOUPLED = 1e-9  # coupling below this fraction of a coordinate's own scale leaves it a plain modal term
 #: a mode an effect creates takes a measured-only mode's frequency and damping within this relative distance
 TEST_ONLY_RTOL = 0.03
+#: FE rows of DOFs, per FE export (weakly held): a fit evaluates hundreds of models on one export
+_ROW_CACHE: "weakref.WeakKeyDictionary[FEModes, dict]" = weakref.WeakKeyDictionary()
+_ROW_CACHE_SIZE = 20000
 
 
 class ModelError(ValueError):
@@ -204,7 +209,7 @@ class ModalModel:
         return pd.DataFrame({"fe_mode": self.fe_mode, "f_fe_hz": self.fe.freqs_hz, "f_hz": self.freqs_hz,
                              "zeta": self.zeta, "origin": list(self.origin), "test_mode": self.test_mode})
 
-    @property
+    @functools.cached_property
     def bodies(self) -> tuple[RigidBody, ...]:
         out: list[RigidBody] = []
         for mod in self.modifications:
@@ -229,23 +234,27 @@ class ModalModel:
 
     def with_effect(self, effect, values: Mapping[str, float] | None = None, setups: Sequence = ()
                     ) -> "ModalModel":
-        """A new model with a catalogued physical effect added (:mod:`receptance.effects`).
+        """A new model with a catalogued physical effect added (:mod:`receptance.diagnosis.effects`).
 
         Parameters
         ----------
         effect : Effect or EffectFit
             An effect with its parameter ``values``, or a fit from
-            :func:`receptance.diagnose.fit_effect` / ``diagnose`` (its fitted
-            values are used).
+            :func:`receptance.diagnosis.fit_effect` / ``diagnose`` (its fitted
+            values and its attachment — where it sat, what it assumed — are
+            used).
         values : dict, optional
             Parameter values by name (see ``effect.parameters()``).
         setups : sequence of DataFrame, optional
             The tests' channel tables (effects at the sensors need them).
         """
         if values is None and hasattr(effect, "effect") and hasattr(effect, "params"):
+            if getattr(effect, "attachment", None) is not None:
+                # where the fit attached it (and with the description it used)
+                return effect.attachment.apply(self, effect.params)
             effect, values = effect.effect, effect.params
         if not hasattr(effect, "apply"):
-            raise ModelError(f"expected a catalogued effect (receptance.effects), got {type(effect).__name__}")
+            raise ModelError(f"expected a catalogued effect (receptance.diagnosis.effects), got {type(effect).__name__}")
         return effect.apply(self, dict(values or {}), setups)
 
     def as_designed(self) -> "ModalModel":
@@ -319,23 +328,33 @@ class ModalModel:
         m = len(self)
         T = np.zeros((len(dofs), m + 6 * len(bodies)))
         carried = {int(n): k for k, b in enumerate(bodies) for n in b.carries}
+        by_name = {b.name: k for k, b in enumerate(bodies)}
+        by_name.update({name: k for k, b in enumerate(bodies) for name in b.carried_points if name not in by_name})
+        direct: list[tuple[int, Dof]] = []
+        floating: list[tuple[int, Dof, Dof]] = []
         for i, dof in enumerate(dofs):
             d = np.asarray(dof.direction)
-            k_body = next((k for k, b in enumerate(bodies) if b.name == dof.point.name), None)
+            k_body = by_name.get(dof.point.name)
             if k_body is None and dof.point.fe_node is not None and dof.point.fe_node in carried:
                 k_body = carried[dof.point.fe_node]
-            if k_body is not None:
-                b = bodies[k_body]
-                p = self._position(dof.point)
-                r = p - np.asarray(b.centre)
-                row = np.concatenate([np.zeros(3), d]) if dof.rotation else np.concatenate([d, np.cross(r, d)])
-                T[i, m + 6 * k_body: m + 6 * k_body + 6] = row
-                if b.reference_node is not None and dof.point.name != b.name:
-                    # floating frame: the part's own deformation relative to its reference node's rigid motion
-                    ref = Point(f"{b.name}@ref", b.reference_node, tuple(p))
-                    T[i, :m] = self._fe_row(dof) - self._fe_row(Dof(dof.label, ref, dof.direction, dof.rotation))
+            if k_body is None:
+                direct.append((i, dof))
                 continue
-            T[i, :m] = self._fe_row(dof)
+            b = bodies[k_body]
+            p = self._position(dof.point)
+            r = p - np.asarray(b.centre)
+            row = np.concatenate([np.zeros(3), d]) if dof.rotation else np.concatenate([d, np.cross(r, d)])
+            T[i, m + 6 * k_body: m + 6 * k_body + 6] = row
+            if b.reference_node is not None and dof.point.name != b.name:
+                # floating frame: the part's own deformation relative to its reference node's rigid motion
+                ref = Point(f"{b.name}@ref", b.reference_node, tuple(p))
+                floating.append((i, dof, Dof(dof.label, ref, dof.direction, dof.rotation)))
+        rows = self._fe_rows([d for _, d in direct] + [d for _, d, _ in floating] + [r for _, _, r in floating])
+        for k, (i, _) in enumerate(direct):
+            T[i, :m] = rows[k]
+        nf = len(floating)
+        for k, (i, _, _) in enumerate(floating):
+            T[i, :m] = rows[len(direct) + k] - rows[len(direct) + nf + k]
         return T
 
     def _position(self, point: Point) -> np.ndarray:
@@ -343,15 +362,47 @@ class ModalModel:
             return np.asarray(point.xyz, float)
         return self.fe.xyz[self.fe.index(point.fe_node)]
 
-    def _fe_row(self, dof: Dof) -> np.ndarray:
-        pt = dof.point
-        if dof.rotation:
+    def _fe_rows(self, dofs: Sequence[Dof]) -> np.ndarray:
+        """FE-mode rows ``(len(dofs), modes)`` of DOFs on the FE (rigid links to their nodes), cached per FE.
+
+        The rows depend on the FE modes and the DOF only, not on frequencies or
+        modifications, so every model built on the same export (a fit evaluates
+        hundreds) shares them.
+        """
+        cache = _ROW_CACHE.setdefault(self.fe, {})
+        out = np.zeros((len(dofs), len(self)))
+        todo = []
+        for k, dof in enumerate(dofs):
+            row = cache.get(dof)
+            if row is None:
+                todo.append(k)
+            else:
+                out[k] = row
+        trans = [k for k in todo if not dofs[k].rotation]
+        for k in todo:
+            dof = dofs[k]
+            if not dof.rotation:
+                continue
+            pt = dof.point
             if not self.fe.has_rotations:
                 raise DofError(f"DOF {dof.label!r}: the FE shapes have no rotations ({self.fe.source})")
             node = pt.fe_node if pt.fe_node is not None else self.fe.nearest_node(pt.xyz, name=pt.name)
-            return self.fe.shapes[:, self.fe.index(node), 3:] @ np.asarray(dof.direction)
-        pos = None if pt.xyz is None else [pt.xyz]
-        return self.fe.at_points([pt.fe_node], pos, [dof.direction], names=[dof.label])[0]
+            out[k] = self.fe.shapes[:, self.fe.index(node), 3:] @ np.asarray(dof.direction)
+        if trans:
+            pts = [dofs[k].point for k in trans]
+            if all(p.xyz is None for p in pts) or all(p.xyz is not None for p in pts):
+                pos = None if pts[0].xyz is None else [p.xyz for p in pts]
+                out[trans] = self.fe.at_points([p.fe_node for p in pts], pos, [dofs[k].direction for k in trans],
+                                               names=[dofs[k].label for k in trans])
+            else:
+                for k in trans:
+                    pt = dofs[k].point
+                    pos = None if pt.xyz is None else [pt.xyz]
+                    out[k] = self.fe.at_points([pt.fe_node], pos, [dofs[k].direction], names=[dofs[k].label])[0]
+        for k in todo:
+            if len(cache) < _ROW_CACHE_SIZE:
+                cache[dofs[k]] = out[k].copy()
+        return out
 
     # ---------------------------------------------------------------- solving
     def system(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -366,9 +417,15 @@ class ModalModel:
         FE frequencies: the test's frequencies already contain the effects
         being added, so the coupled solve starts from the design model (FE +
         effect: the physics) and the poles that carry a test mode are moved
-        back to the test's values afterwards (:meth:`_pin`).
+        back to the test's values afterwards (:meth:`_pin`).  A model that mixes
+        such effects with in-service modifications is solved from corrected
+        FE frequencies (:meth:`_corrected_base`); any other model from its own
+        frequencies.
         """
         if not self.pins_test_modes:
+            mixed = any(getattr(mod, "in_test", False) for mod in self.modifications)
+            if mixed and any(o == "test" for o in self.origin):
+                return self._corrected_base()
             return self.freqs_hz
         base = self.freqs_hz.copy()
         f_fe = self.fe.freqs_hz
@@ -414,25 +471,15 @@ class ModalModel:
             K = K.real
         return M, C, K
 
-    def pole_residues(self, outputs, inputs=None) -> PoleResidues:
-        """Poles and residues of the receptance from ``inputs`` to ``outputs`` (eqs. 2.28–2.30 solved once).
+    @functools.cached_property
+    def _solution(self) -> "_Solution":
+        """Everything about the modified system that does not depend on the DOFs asked for.
 
-        Parameters
-        ----------
-        outputs, inputs : sequence of DOF specs
-            Names (``"contact_L:z"``), thesis numbers 1–12, :class:`Dof`
-            objects (e.g. from :func:`~receptance.dofs.dofs_from_channels`).
-            ``inputs`` defaults to ``outputs``.
-
-        Returns
-        -------
-        PoleResidues
+        Solved once per model (the model is immutable) and reused by every
+        :meth:`pole_residues` call: the modal terms no modification touches,
+        and the coupled coordinates' poles with the maps from those
+        coordinates to residues and mass line.
         """
-        out_dofs = [self.dof(s) for s in (outputs if not isinstance(outputs, (str, Dof, int)) else [outputs])]
-        in_specs = outputs if inputs is None else inputs
-        in_dofs = [self.dof(s) for s in (in_specs if not isinstance(in_specs, (str, Dof, int)) else [in_specs])]
-        To, Ti = self._rows_of(out_dofs), self._rows_of(in_dofs)
-        labels_o, labels_i = tuple(d.label for d in out_dofs), tuple(d.label for d in in_dofs)
         base = self.base_freqs_hz
         M, C, K = self._system(base)
         m = len(self)
@@ -453,19 +500,48 @@ class ModalModel:
         free = np.flatnonzero(~touched)
         if self.max_hz is not None:
             free = free[self.freqs_hz[free] <= self.max_hz]
-        pr = PoleResidues.from_modes(self.freqs_hz[free], self.zeta[free], To[:, free], Ti[:, free], labels_o,
-                                     labels_i)
         sel = np.flatnonzero(touched)
         if sel.size == 0:
-            return replace(pr, history=(f"{self.name}: modal sum of {len(self)} modes",))
-        poles, residues, mass_line, share = _solve_coupled(M[np.ix_(sel, sel)], C[np.ix_(sel, sel)],
-                                                           K[np.ix_(sel, sel)], To[:, sel], Ti[:, sel])
+            return _Solution(free, sel, np.zeros(0, complex), np.zeros((0, 0), complex), np.zeros((0, 0), complex),
+                             np.zeros((0, 0)))
+        poles, left, right, N, share = _solve_coupled(M[np.ix_(sel, sel)], C[np.ix_(sel, sel)], K[np.ix_(sel, sel)])
         if self.pins_test_modes:
-            poles, residues = self._pin(poles, residues, sel, share)
+            poles, factor = self._pin(poles, sel, share)
+            left = left * factor[None, :]
         if self.max_hz is not None:
             inside = np.abs(poles) <= 2 * np.pi * self.max_hz
-            poles, residues = poles[inside], residues[:, :, inside]
-        return PoleResidues(np.concatenate([pr.poles, poles]), np.concatenate([pr.residues, residues], axis=2),
+            poles, left, right = poles[inside], left[:, inside], right[inside]
+        return _Solution(free, sel, poles, left, right, N)
+
+    def pole_residues(self, outputs, inputs=None) -> PoleResidues:
+        """Poles and residues of the receptance from ``inputs`` to ``outputs`` (eqs. 2.28–2.30 solved once).
+
+        Parameters
+        ----------
+        outputs, inputs : sequence of DOF specs
+            Names (``"contact_L:z"``), thesis numbers 1–12, :class:`Dof`
+            objects (e.g. from :func:`~receptance.dofs.dofs_from_channels`).
+            ``inputs`` defaults to ``outputs``.
+
+        Returns
+        -------
+        PoleResidues
+        """
+        out_dofs = [self.dof(s) for s in (outputs if not isinstance(outputs, (str, Dof, int)) else [outputs])]
+        in_specs = outputs if inputs is None else inputs
+        in_dofs = [self.dof(s) for s in (in_specs if not isinstance(in_specs, (str, Dof, int)) else [in_specs])]
+        To, Ti = self._rows_of(out_dofs), self._rows_of(in_dofs)
+        labels_o, labels_i = tuple(d.label for d in out_dofs), tuple(d.label for d in in_dofs)
+        sol = self._solution
+        free, sel = sol.free, sol.sel
+        pr = PoleResidues.from_modes(self.freqs_hz[free], self.zeta[free], To[:, free], Ti[:, free], labels_o,
+                                     labels_i)
+        if sel.size == 0:
+            return replace(pr, history=(f"{self.name}: modal sum of {len(self)} modes",))
+        To_s, Ti_s = To[:, sel], Ti[:, sel]
+        residues = (To_s @ sol.left)[:, None, :] * (sol.right @ Ti_s.T).T[None, :, :]
+        mass_line = (To_s @ sol.mass_basis) @ (Ti_s @ sol.mass_basis).T
+        return PoleResidues(np.concatenate([pr.poles, sol.poles]), np.concatenate([pr.residues, residues], axis=2),
                             pr.mass_line + mass_line, labels_o, labels_i,
                             history=(f"{self.name}: {free.size} modal terms + {sel.size} coupled coordinates "
                                      f"({len(self.modifications)} modification(s))",))
@@ -483,8 +559,8 @@ class ModalModel:
         """
         return bool(self.modifications) and all(getattr(m, "in_test", False) for m in self.modifications)
 
-    def _pin(self, poles, residues, sel, share):
-        """Give the poles that carry a measured mode its test frequency and damping.
+    def _assign(self, poles, sel, share) -> dict[int, tuple[float, float]]:
+        """Which poles carry a measured mode: pole index -> the test's ``(f_hz, zeta)``.
 
         First the paired modes: each test mode (coordinates with the same test
         frequency and damping form one group — a degenerate cluster, which a
@@ -495,19 +571,18 @@ class ModalModel:
         effect has turned that mode into another one).  Then
         each remaining pole takes the measured mode without FE partner
         (:attr:`test_only`) nearest in frequency, if within
-        :data:`TEST_ONLY_RTOL`.
+        :data:`TEST_ONLY_RTOL`.  Only poles with positive imaginary part are
+        listed (their conjugates follow them).
         """
-        poles = poles.copy()
-        residues = residues.copy()
         m = len(self)
         groups: dict[tuple, list[int]] = {}
         for j, c in enumerate(sel):
             if c < m and self.origin[c] == "test":
                 groups.setdefault((self.freqs_hz[c], self.zeta[c]), []).append(j)
         upper = np.flatnonzero(poles.imag > 0)
-        if upper.size == 0:
-            return poles, residues
         targets: dict[int, tuple[float, float]] = {}
+        if upper.size == 0:
+            return targets
         if groups:
             # energy shares among the FE coordinates only: an added body (a wheel on its seat) may carry most
             # of a mode's kinetic energy while the FE coordinate still says which mode it is
@@ -532,16 +607,77 @@ class ModalModel:
             for c, r in enumerate(nearest):
                 if dist[r, c] <= np.log1p(TEST_ONLY_RTOL):
                     targets[int(free[c])] = self.test_only[r]
-        for k, (f, z) in targets.items():
+        return targets
+
+    def _pin(self, poles, sel, share):
+        """Give the poles that carry a measured mode (:meth:`_assign`) its test frequency and damping.
+
+        Returns the new poles and, per pole, the factor its residue takes: the
+        residue of a pair scales with ``1 / Im(pole)`` so that the
+        mass-normalised shape is kept.
+        """
+        poles = poles.copy()
+        factor = np.ones(poles.size)
+        for k, (f, z) in self._assign(poles, sel, share).items():
             w = 2 * np.pi * f
             new = -z * w + 1j * w * np.sqrt(1 - z * z)
-            # the conjugate partner moves with it; the residue of a pair scales with 1 / Im(pole) so that
-            # the mass-normalised shape is kept
+            # the conjugate partner moves with it
             partner = int(np.argmin(np.abs(poles - np.conj(poles[k]))))
             for idx, target in ((k, new), (partner, np.conj(new))):
-                residues[:, :, idx] *= poles[idx].imag / target.imag
+                factor[idx] *= poles[idx].imag / target.imag
                 poles[idx] = target
-        return poles, residues
+        return poles, factor
+
+    def _corrected_base(self) -> np.ndarray:
+        """Base frequencies of a model mixing effects present in the test with in-service modifications.
+
+        The test's frequencies already contain the lab effects (a bearing, a
+        press fit), so they cannot be the base of a model that adds those
+        effects again together with the primary suspension.  The lab
+        configuration (design FE + lab effects) is solved as physics and each
+        test mode's pole is found as :meth:`_assign` does; the ratio of its
+        test frequency to that pole's frequency — what the test corrects in
+        the design physics — multiplies the FE frequencies of the mode's
+        coordinates.  The in-service model is then solved from these corrected
+        frequencies plus every modification, unpinned: a lab model without
+        in-service modifications reproduces the test's frequencies, and the
+        in-service modifications move the modes from there.  Test modes whose
+        pole the lab effects turned into another mode keep the test frequency.
+        """
+        lab = replace(self, modifications=tuple(mod for mod in self.modifications if getattr(mod, "in_test", False)))
+        base = lab.base_freqs_hz.copy()
+        M, C, K = lab._system(base)
+        m = len(self)
+        sel = np.arange(M.shape[0])
+        poles, _, _, _, share = _solve_coupled(M, C, K)
+        out = self.freqs_hz.copy()
+        f_of_group: dict[tuple, list[float]] = {}
+        for k, key in lab._assign(poles, sel, share).items():
+            f_of_group.setdefault(key, []).append(float(np.abs(poles[k]) / (2 * np.pi)))
+        for j in range(m):
+            if self.origin[j] != "test":
+                continue
+            key = (self.freqs_hz[j], self.zeta[j])
+            if key in f_of_group and base[j] > 0:
+                out[j] = base[j] * key[0] / float(np.mean(f_of_group[key]))
+        return out
+
+    def for_service(self) -> "ModalModel":
+        """The model without what belonged to the test only: the wheelset as it runs in service.
+
+        Modifications whose ``role`` is ``"test_artefact"`` (rig springs,
+        sensor masses) are removed; wheelset properties found in the lab (a
+        bearing, a press fit) are kept; channel terms (residuals and measured
+        modes fitted at the test's sensors) have no shape away from those
+        sensors and are removed too.  Add the primary suspension afterwards:
+        the test frequencies are then corrected as :meth:`base_freqs_hz` says.
+        """
+        kept = tuple(mod for mod in self.modifications if getattr(mod, "role", "wheelset") != "test_artefact")
+        dropped = [mod.kind for mod in self.modifications if mod not in kept]
+        step = "for service: " + (f"removed test artefacts {dropped}" if dropped else "no test artefact to remove")
+        if self.channel_terms:
+            step += f"; removed {len(self.channel_terms)} channel term set(s) fitted at the test's sensors"
+        return replace(self, modifications=kept, channel_terms=(), history=self.history + (step,))
 
     # ------------------------------------------------------------- responses
     def receptance(self, outputs, inputs=None, freqs_hz=None, *, quantity: str = "receptance",
@@ -563,7 +699,7 @@ class ModalModel:
         return self.pole_residues(outputs, inputs).evaluate(freqs_hz, quantity, decay=decay)
 
     def frf_at_channels(self, channels: pd.DataFrame, freqs_hz, *, decay: float = 0.0,
-                        quantity: str = "accelerance") -> FrequencyResponse:
+                        quantity: str = "accelerance", dofs: tuple | None = None) -> FrequencyResponse:
         """The model's FRFs at the sensors of a channel table, driven at its force channel.
 
         This is the model's counterpart of a measured H1 (thesis Figs. 3.18–3.19):
@@ -579,18 +715,33 @@ class ModalModel:
             Exponential-window decay of the measurement [1/s] (its FRF's ``exp_window_decay``).
         quantity : str, optional
             Default ``"accelerance"``.
+        dofs : (list of Dof, list of Dof), optional
+            The table's acceleration and force DOFs already parsed
+            (:func:`~receptance.dofs.dofs_from_channels`), for callers that
+            evaluate many models on one table.
         """
         force = channels[channels["quantity"] == "force"]
         if len(force) != 1:
             raise ModelError(f"the channel table must have exactly one force row, found {len(force)}")
         acc = channels[channels["quantity"] == "acceleration"].reset_index(drop=True)
-        outs = dofs_from_channels(acc)
-        ins = dofs_from_channels(force)
-        pr = self.pole_residues(outs, ins)
-        H = pr.evaluate(freqs_hz, quantity, decay=decay, channels=acc)
+        outs, ins = dofs if dofs is not None else (dofs_from_channels(acc), dofs_from_channels(force))
         setup = ""
         if "setup" in acc and acc["setup"].notna().any():
             setup = str(acc["setup"].dropna().iloc[0])
+        H = self.pole_residues(outs, ins).evaluate(freqs_hz, quantity, decay=decay, channels=acc)
+        return self._with_channel_terms(H, setup, decay, quantity)
+
+    def channel_accelerance(self, outputs, inputs, freqs_hz, *, decay: float = 0.0, setup: str = "") -> np.ndarray:
+        """``(n_out, n_freq)`` accelerance from ``inputs[0]`` to ``outputs`` with the channel terms of ``setup``.
+
+        The bare array behind :meth:`frf_at_channels` for callers that evaluate
+        many models on the same parsed DOFs (a fit): no table handling.
+        """
+        H = self.pole_residues(outputs, inputs).evaluate(freqs_hz, "accelerance", decay=decay)
+        return self._with_channel_terms(H, setup, decay, "accelerance").data[:, 0]
+
+    def _with_channel_terms(self, H: FrequencyResponse, setup: str, decay: float, quantity: str
+                            ) -> FrequencyResponse:
         terms = [t for t in self.channel_terms if t.setup in ("", setup)]
         if not terms:
             return H
@@ -615,8 +766,16 @@ class ModalModel:
         return df.sort_values("f_hz", kind="stable").reset_index(drop=True)
 
 
-def _solve_coupled(M, C, K, To, Ti):
-    """Poles, residues and mass line of a small coupled system in coordinates (see module docstring)."""
+def _solve_coupled(M, C, K):
+    """Poles of a small coupled system in coordinates, with the maps to residues and mass line.
+
+    Returns ``poles`` (2p,), ``left`` (n, 2p) and ``right`` (2p, n) such that
+    the residue of pole k between DOF rows ``To`` and ``Ti`` (over these
+    coordinates) is ``(To @ left[:, k]) (right[k] @ Ti.T)``; ``mass_basis`` (n, r)
+    mass-normalised unrestrained rigid-body directions (mass line
+    ``(To N)(Ti N)ᵀ``); ``share`` (n, 2p) the kinetic-energy share of each
+    coordinate in each pole.
+    """
     n = M.shape[0]
     # unrestrained rigid-body directions: null space of K and C together; they give a mass line
     stacked = np.vstack([K, C])
@@ -624,20 +783,18 @@ def _solve_coupled(M, C, K, To, Ti):
     tol = 1e-10 * max(s[0] if s.size else 0.0, 1.0)
     rank = int(np.sum(s > tol))
     N = vh[rank:].conj().T.real if rank < n else np.zeros((n, 0))
-    mass_line = np.zeros((To.shape[0], Ti.shape[0]), complex)
     if N.shape[1]:
         mn = N.T @ M @ N
         ev, evec = np.linalg.eigh(mn)
         if ev.min() <= 0:
             raise ModelError("a rigid-body motion of the modified model has no mass; check mass modifications")
         N = N @ evec / np.sqrt(ev)
-        mass_line = (To @ N) @ (Ti @ N).T
         P = scipy.linalg.null_space(N.T @ M)
     else:
         P = np.eye(n)
     p = P.shape[1]
     if p == 0:
-        return np.zeros(0, complex), np.zeros((To.shape[0], Ti.shape[0], 0), complex), mass_line, np.zeros((n, 0))
+        return np.zeros(0, complex), np.zeros((n, 0), complex), np.zeros((0, n), complex), N, np.zeros((n, 0))
     Mp, Cp, Kp = P.T @ M @ P, P.T @ C @ P, P.T @ K @ P
     Minv = np.linalg.inv(Mp)
     A = np.zeros((2 * p, 2 * p), complex)
@@ -646,17 +803,30 @@ def _solve_coupled(M, C, K, To, Ti):
     A[p:, p:] = -Minv @ Cp
     B = np.zeros((2 * p, p), complex)
     B[p:] = Minv
-    lam, V = scipy.linalg.eig(A)
-    W = np.linalg.solve(V, B)  # (2p, p): V⁻¹ B
-    left = (To @ P) @ V[:p]  # (n_out, 2p)
-    right = W @ (Ti @ P).T  # (2p, n_in)
-    residues = left[:, None, :] * right.T[None, :, :]
-    cond = np.linalg.cond(V)
-    if cond > 1e10:
+    lam, V = scipy.linalg.eig(A, overwrite_a=True, check_finite=False)
+    lu = scipy.linalg.lu_factor(V, check_finite=False)
+    W = scipy.linalg.lu_solve(lu, B, check_finite=False)  # (2p, p): V⁻¹ B
+    left = P @ V[:p]  # (n, 2p)
+    right = W @ P.T  # (2p, n)
+    # reciprocal condition number of V from its LU factors (LAPACK gecon): cheap, and only a warning depends on it
+    gecon = scipy.linalg.lapack.get_lapack_funcs("gecon", (lu[0],))
+    rcond, _ = gecon(lu[0], np.abs(V).sum(axis=0).max(), norm="1")
+    if rcond < 1e-10:
         log.warning("the modified model's eigenvectors are nearly dependent (condition %.1e); receptances may be "
-                    "inaccurate near repeated modes", cond)
+                    "inaccurate near repeated modes", 1 / max(rcond, 1e-300))
     # which coordinate each pole lives in: kinetic-energy share of its eigenvector (> 1/2 names an owner)
-    X = P @ V[:p]
-    energy = np.abs(X) ** 2 * np.diag(M)[:, None]
+    energy = np.abs(left) ** 2 * np.diag(M)[:, None]
     share = energy / np.maximum(energy.sum(axis=0, keepdims=True), np.finfo(float).tiny)
-    return lam, residues, mass_line, share
+    return lam, left, right, N, share
+
+
+@dataclass(frozen=True)
+class _Solution:
+    """The DOF-independent part of a solved model (see :attr:`ModalModel._solution`)."""
+
+    free: np.ndarray
+    sel: np.ndarray
+    poles: np.ndarray
+    left: np.ndarray
+    right: np.ndarray
+    mass_basis: np.ndarray

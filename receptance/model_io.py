@@ -47,8 +47,11 @@ from fem_import.modes import Element, FEModes
 from receptance.dofs import Point
 from receptance.modal_model import ChannelTerms, ModalModel
 from receptance.modification import ModificationError, modification_from_dict
+# registers the kinds the catalogued effects add (rig_springs, bearing_bodies, seat_joints...) so that a diagnosed
+# model file loads without importing the diagnosis
+import receptance.effect_modifications  # noqa: E402,F401
 
-__all__ = ["save_model", "load_model", "ModelFileError", "FORMAT", "VERSION"]
+__all__ = ["save_model", "load_model", "load_service_model", "ModelFileError", "FORMAT", "VERSION"]
 
 FORMAT = "railmodal.hybrid_model"
 VERSION = 1
@@ -167,3 +170,37 @@ def load_model(path: str | Path) -> ModalModel:
                           history=tuple(header.get("history", ())) + (f"read from {path}",))
     except (ModificationError, ValueError, KeyError, TypeError) as exc:
         raise ModelFileError(f"{path}: inconsistent hybrid-model file: {exc}") from exc
+
+
+def load_service_model(path: str | Path, fe: FEModes | None = None) -> ModalModel:
+    """The wheelset in service from a diagnosed model file (``lab diagnose``'s ``hybrid_model.npz``).
+
+    The model keeps what belongs to the wheelset (bearings, press fits found
+    in the lab) and drops what belonged to the test (rig, sensor masses,
+    curve fits at the test's sensors): :meth:`ModalModel.for_service`.
+
+    Parameters
+    ----------
+    path : str or Path
+    fe : FEModes, optional
+        The FE export the in-service model is built with: the file must hold
+        the same nodes and, for the modes it kept, the same frequencies
+        (1e-6), else it belongs to another export.
+
+    Raises
+    ------
+    ModelFileError
+        Unreadable file, or a model of another FE export (names both).
+    """
+    model = load_model(path)
+    if fe is not None:
+        same_nodes = model.fe.node_ids.size == fe.node_ids.size and np.array_equal(np.sort(model.fe.node_ids),
+                                                                                  np.sort(fe.node_ids))
+        idx = np.asarray(model.fe_mode, int) - 1
+        same_modes = same_nodes and idx.size > 0 and idx.max() < len(fe) and np.allclose(
+            model.fe.freqs_hz, fe.freqs_hz[idx], rtol=1e-6, atol=1e-6)
+        if not same_modes:
+            raise ModelFileError(f"{path}: the diagnosed model was built on another FE export than "
+                                 f"{fe.source or 'the one given'} ({model.fe.node_ids.size} nodes, {len(model)} modes "
+                                 f"from {model.fe.source or '?'}); give the FE export the diagnosis used")
+    return model.for_service()

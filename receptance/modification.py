@@ -26,8 +26,15 @@ import numpy as np
 
 __all__ = [
     "Modification", "Term", "RigidBody", "GroundSprings", "PrimarySuspension", "Spring", "PointMass",
-    "MODIFICATIONS", "register", "modification_from_dict", "ModificationError",
+    "MODIFICATIONS", "register", "modification_from_dict", "ModificationError", "ROLES",
 ]
+
+#: what a modification is to the wheelset in service (:meth:`receptance.ModalModel.for_service`)
+ROLES = {
+    "test_artefact": "present only during the modal test (rig, sensors): removed for service",
+    "wheelset": "a property of the wheelset itself (bearing, press fit, added mass): kept in service",
+    "service": "the wheelset's environment in service (primary suspension, supports)",
+}
 
 
 class ModificationError(ValueError):
@@ -67,6 +74,11 @@ class RigidBody:
         motion of this FE node (a floating frame): ``u = u_body + θ_body × r +
         (u_FE − u_FE,rigid about the reference node)``.  None: the carried
         nodes move rigidly with the body (an axlebox).
+    carried_points : tuple of str, optional
+        Named points (model points such as ``axlebox_L``, sensors by channel
+        name) that move with the body whatever node they are attached to: a
+        part the FE lumped into another part's node (an axlebox lumped on the
+        journal) or left out has no node of its own.
     """
 
     name: str
@@ -75,6 +87,7 @@ class RigidBody:
     centre: tuple[float, float, float]
     carries: tuple[int, ...] = ()
     reference_node: int | None = None
+    carried_points: tuple[str, ...] = ()
 
     def mass_matrix(self) -> np.ndarray:
         return np.diag([self.mass] * 3 + list(self.inertia)).astype(float)
@@ -90,6 +103,8 @@ class Modification:
     kind: ClassVar[str] = ""
     #: present while the wheelset was tested (rig, bearings, sensors): see ModalModel.pins_test_modes
     in_test: ClassVar[bool] = False
+    #: one of :data:`ROLES`: whether the in-service model keeps it (ModalModel.for_service)
+    role: ClassVar[str] = "wheelset"
 
     def bodies(self) -> tuple[RigidBody, ...]:
         """Rigid bodies this modification adds (default none)."""
@@ -107,7 +122,13 @@ class Modification:
         raise NotImplementedError
 
     def describe(self) -> str:
-        return f"{self.kind}({', '.join(f'{k}={v!r}' for k, v in self.to_dict().items() if k != 'kind')})"
+        """One line for a model's history: the parameters, long arrays summarised by their size."""
+        parts = []
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            size = np.size(np.asarray(v, dtype=object)) if isinstance(v, (tuple, list, np.ndarray)) else 1
+            parts.append(f"{f.name}=<{size} values>" if size > 12 else f"{f.name}={_jsonable(v)!r}")
+        return f"{self.kind}({', '.join(parts)})"
 
     def to_dict(self) -> dict:
         """JSON-ready parameters (``kind`` plus the dataclass fields)."""
@@ -154,7 +175,7 @@ def _from_json(v):
     if isinstance(v, dict) and "__body__" in v:
         b = v["__body__"]
         return RigidBody(b["name"], b["mass"], tuple(b["inertia"]), tuple(b["centre"]), tuple(b["carries"]),
-                         b.get("reference_node"))
+                         b.get("reference_node"), tuple(b.get("carried_points", ())))
     if isinstance(v, list):
         return tuple(_from_json(x) for x in v)
     return v
@@ -190,6 +211,7 @@ class GroundSprings(Modification):
     """
 
     kind: ClassVar[str] = "ground_springs"
+    role: ClassVar[str] = "service"
     points: tuple[str, ...] = ("axlebox_L", "axlebox_R")
     stiffness: tuple[float, float, float] = (0.0, 0.0, 0.0)
     damping: tuple[float, float, float] = (0.0, 0.0, 0.0)

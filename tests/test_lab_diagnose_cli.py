@@ -1,4 +1,4 @@
-"""``railmodal lab diagnose`` and ``railmodal demo`` end to end on the virtual lab (issue 5, CLI and report).
+"""``railmodal lab diagnose`` and ``railmodal demo`` end to end on the virtual lab (CLI, report, saved model, FRF files).
 
 Oracle: the lab truth of the 'rig' scenario (crane springs of 3.5e5 N/m vertical per axlebox lug, hidden
 from the toolkit) and of its hammer campaign (which hits were double, which channel clipped). The FE export
@@ -34,11 +34,15 @@ def _no_nan(text: str):
 @pytest.fixture(scope="module")
 def rig_run(tmp_path_factory):
     folder = campaign_dir("rig", fe_export_hz=2000.0)
-    out = tmp_path_factory.mktemp("diagnose_rig")
+    out = tmp_path_factory.mktemp("diagnose_rig") / "out"
+    # what the lab knows about its rig: the wheelset hung from the axlebox lugs (a wheelset description)
+    description = out.parent / "wheelset.toml"
+    description.write_text('[rig]\nhanging_points = ["axlebox_L", "axlebox_R"]\n', encoding="utf-8")
     argv = ["-q", "lab", "diagnose"]
     for setup in ("flexural", "torsional"):
         argv += ["--hammer", str(folder / f"{setup}.uff"), "--channels", str(folder / f"{setup}_channels.csv")]
-    argv += ["--fem", str(folder / "fe_design.uff"), "--points", str(folder / "points.csv"), "--out", str(out)]
+    argv += ["--fem", str(folder / "fe_design.uff"), "--points", str(folder / "points.csv"), "--out", str(out),
+             "--description", str(description)]
     return folder, out, argv
 
 
@@ -95,6 +99,43 @@ def test_rig_diagnosis_finds_the_crane_springs_with_their_stiffness(rig_result):
     assert doc["timings_s"]["total"] >= doc["timings_s"]["diagnose"]
     # the terminal summary names the effect and the report
     assert "rig_suspension" in stdout and str(out / "report.html") in stdout
+    # the hanging points came from the description: no position fitted
+    assert set(first["params"]) == {"vertical_N_per_m", "horizontal_N_per_m"}
+    assert doc["description"]["hanging_points"] == ["axlebox_L", "axlebox_R"]
+    assert doc["not_applicable"] == [] and doc["workers"] >= 1
+    assert all(set(r) >= {"rig_suspension", "axlebox_bearing"} for r in doc["candidate_seconds"][:1])
+
+
+@pytest.mark.slow
+def test_rig_diagnosis_saves_the_diagnosed_model_with_roles(rig_result):
+    """hybrid_model.npz holds the accepted effect; the rig is a test artefact the in-service model drops."""
+    from receptance.model_io import load_model
+
+    out, doc, _, _ = rig_result
+    assert doc["model"]["file"] == "hybrid_model.npz" and (out / "hybrid_model.npz").is_file()
+    assert doc["model"]["modifications"] == [{"kind": "rig_springs", "role": "test_artefact",
+                                              "kept_in_service": False}]
+    model = load_model(out / "hybrid_model.npz")
+    assert [m.kind for m in model.modifications] == ["rig_springs"]
+    assert model.modifications[0].stiffness[2] == pytest.approx(doc["accepted"][0]["params"]["vertical_N_per_m"])
+    assert model.for_service().modifications == ()
+    assert doc["accepted"][0]["role"] == "test_artefact"
+
+
+@pytest.mark.slow
+def test_model_build_takes_the_wheelset_from_the_diagnosis_not_the_test(rig_run, rig_result, tmp_path):
+    """``model build --diagnosed``: the in-service model carries the wheelset properties the diagnosis found and
+    drops its test artefacts (here the crane springs) before the primary suspension is added."""
+    from receptance.model_io import load_model
+
+    folder, out, _ = rig_run
+    code = main(["-q", "model", "build", "--pairing", str(out), "--fem", str(folder / "fe_design.uff"),
+                 "--points", str(folder / "points.csv"), "--diagnosed", str(out / "hybrid_model.npz"),
+                 "--out", str(tmp_path / "service")])
+    assert code == 0
+    model = load_model(tmp_path / "service" / "hybrid_model.npz")
+    assert [m.kind for m in model.modifications] == ["primary_suspension"]
+    assert any("removed test artefacts ['rig_springs']" in h for h in model.history)
 
 
 @pytest.mark.slow
@@ -153,6 +194,48 @@ def test_demo_runs_the_lab_workflow_and_prints_where_the_report_is(tmp_path, cap
     assert len(printed.splitlines()) < 25  # short and readable
 
 
+@pytest.mark.slow
+def test_lab_diagnose_reads_exported_frf_files_without_coherence(tmp_path, rig_result):
+    """The lab's FRFs as an acquisition system exports them (flexural: binary, no coherence; torsional: ASCII
+    mobility with coherence): the same diagnosis (rig_suspension, vertical within 25 % of the truth), the noise
+    floor estimated from the modal fit for the file without coherence and said so in the report."""
+    import ema
+    import pandas as pd
+    from ema.uff_frf import write_frf_uff
+
+    folder = campaign_dir("rig", fe_export_hz=2000.0)
+    argv = ["-q", "lab", "diagnose"]
+    for setup, binary, quantity, coherence in (("flexural", True, "accelerance", False),
+                                               ("torsional", False, "mobility", True)):
+        table = pd.read_csv(folder / f"{setup}_channels.csv")
+        test = ema.read_hammer(folder / f"{setup}.uff", table)
+        H = ema.estimate_frf(test, screening=ema.screen_hits(test))
+        path = write_frf_uff(H.as_quantity(quantity), tmp_path / f"{setup}_frf.uff", table, binary=binary,
+                             coherence=coherence)
+        argv += ["--frf", str(path), "--channels", str(folder / f"{setup}_channels.csv")]
+    out = tmp_path / "out"
+    description = tmp_path / "wheelset.toml"
+    description.write_text('[rig]\nhanging_points = ["axlebox_L", "axlebox_R"]\n', encoding="utf-8")
+    argv += ["--fem", str(folder / "fe_design.uff"), "--points", str(folder / "points.csv"), "--out", str(out),
+             "--averages", "5", "--description", str(description), "--max-effects", "1"]
+    assert main(argv) == 0
+    doc = _no_nan((out / "diagnosis.json").read_text())
+    truth = json.loads((folder / "truth.json").read_text())["scenario"]["effects"]["rig"]["vertical_N_per_m"]
+    assert [a["name"] for a in doc["accepted"]] == ["rig_suspension"]
+    assert doc["accepted"][0]["params"]["vertical_N_per_m"] == pytest.approx(truth, rel=0.25)
+    by_name = {s["setup"]: s for s in doc["setups"]}
+    assert "modal fit" in by_name["flexural"]["noise_floor_method"]
+    assert "coherence" in by_name["torsional"]["noise_floor_method"] and by_name["torsional"]["n_averages"] == [5, 5]
+    # the same data as the hammer files: the same diagnosis, and a floor near the one coherence gives
+    hammer = rig_result[1]
+    assert doc["accepted"][0]["params"]["vertical_N_per_m"] == pytest.approx(
+        hammer["accepted"][0]["params"]["vertical_N_per_m"], rel=0.05)
+    assert doc["initial"]["summary_error"] == pytest.approx(hammer["initial"]["summary_error"], rel=0.02)
+    assert doc["initial"]["noise_floor"] == pytest.approx(hammer["initial"]["noise_floor"], rel=0.15)
+    page = (out / "report.html").read_text(encoding="utf-8")
+    assert "estimated from the measurement itself" in page
+
+
 # ---------------------------------------------------------------------------------------------- bad input
 def _files(tmp_path, *names):
     paths = []
@@ -178,41 +261,88 @@ def test_mismatched_hammer_and_channels_counts_are_an_argparse_error(tmp_path, c
               "--out", str(tmp_path / "out")])
     assert exc.value.code == 2
     err = capsys.readouterr().err
-    assert "2 --hammer and 1 --channels" in err
+    assert "2 --hammer, 0 --frf and 1 --channels" in err
     assert not (tmp_path / "out").exists()
 
 
 def test_missing_fe_file_is_named_before_any_work(tmp_path, capsys):
     a, ca, points = _files(tmp_path, "a.uff", "a.csv", "points.csv")
     fem = tmp_path / "nowhere" / "fe_design.uff"
-    code = main(["lab", "diagnose", "--hammer", a, "--channels", ca, "--fem", str(fem), "--points", points,
-                 "--out", str(tmp_path / "out")])
-    assert code == 1
+    with pytest.raises(SystemExit) as exc:
+        main(["lab", "diagnose", "--hammer", a, "--channels", ca, "--fem", str(fem), "--points", points,
+              "--out", str(tmp_path / "out")])
+    assert exc.value.code == 2
     err = capsys.readouterr().err
-    assert "FE modes file not found" in err and str(fem) in err
+    assert "--fem: FE modes" in err and str(fem) in err and "does not exist" in err
     assert not (tmp_path / "out").exists()  # failed fast: the placeholder hammer file was never read
 
 
-def test_missing_hammer_file_is_named_with_its_setup(tmp_path, capsys):
+def test_missing_hammer_file_is_named(tmp_path, capsys):
     a, ca, fem, points = _files(tmp_path, "a.uff", "a.csv", "fe.uff", "points.csv")
     missing = tmp_path / "b.uff"
-    code = main(["lab", "diagnose", "--hammer", a, "--channels", ca, "--hammer", str(missing), "--channels", ca,
-                 "--fem", fem, "--points", points, "--out", str(tmp_path / "out")])
+    with pytest.raises(SystemExit) as exc:
+        main(["lab", "diagnose", "--hammer", a, "--channels", ca, "--hammer", str(missing), "--channels", ca,
+              "--fem", fem, "--points", points, "--out", str(tmp_path / "out")])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "--hammer: hammer-test" in err and str(missing) in err
+
+
+def test_hammer_and_frf_setups_pair_with_their_channels_in_order(tmp_path, capsys):
+    a, b, ca, fem, points = _files(tmp_path, "a.uff", "b.uff", "a.csv", "fe.uff", "points.csv")
+    with pytest.raises(SystemExit) as exc:
+        main(["lab", "diagnose", "--hammer", a, "--channels", ca, "--frf", b, "--fem", fem, "--points", points,
+              "--out", str(tmp_path / "out")])
+    assert exc.value.code == 2
+    assert "1 --hammer, 1 --frf and 1 --channels" in capsys.readouterr().err
+
+
+def test_a_bad_description_is_named_before_any_work(tmp_path, capsys):
+    a, ca, fem, points = _files(tmp_path, "a.uff", "a.csv", "fe.uff", "points.csv")
+    desc = tmp_path / "wheelset.toml"
+    desc.write_text("[axlebox]\nmass = 78\n")
+    code = main(["lab", "diagnose", "--hammer", a, "--channels", ca, "--fem", fem, "--points", points,
+                 "--description", str(desc), "--out", str(tmp_path / "out")])
     assert code == 1
     err = capsys.readouterr().err
-    assert "setup 2: hammer-test file not found" in err and str(missing) in err
+    assert str(desc) in err and "unknown key 'mass'" in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_fe_mass_and_points_are_checked_before_any_identification(tmp_path, capsys):
+    """The FE export's rigid-body mass (against --total-mass) and the points' nodes are checked before the hammer
+    files are read: the placeholder hammer file below is never opened, and nothing is written."""
+    folder = campaign_dir("rig", fe_export_hz=2000.0)
+    (hammer,) = _files(tmp_path, "a.uff")
+    argv = ["lab", "diagnose", "--hammer", hammer, "--channels", str(folder / "flexural_channels.csv"),
+            "--fem", str(folder / "fe_design.uff"), "--out", str(tmp_path / "out")]
+    assert main(argv + ["--points", str(folder / "points.csv"), "--total-mass", "600"]) == 1
+    err = capsys.readouterr().err
+    assert "600" in err and "fe_design.uff" in err and "placeholder" not in err
+    bad = tmp_path / "points.csv"
+    lines = (folder / "points.csv").read_text().splitlines()
+    header = lines[0].split(",")
+    row = lines[1].split(",")
+    row[header.index("fe_node")] = "987654"
+    bad.write_text("\n".join([lines[0], ",".join(row)] + lines[2:]) + "\n")
+    assert main(argv + ["--points", str(bad)]) == 1
+    err = capsys.readouterr().err
+    assert "987654" in err and str(bad) in err
+    assert not (tmp_path / "out").exists()
 
 
 def test_two_setups_with_the_same_name_are_refused_before_any_work(tmp_path, capsys):
     a, b, fem, points = _files(tmp_path, "a.uff", "b.uff", "fe.uff", "points.csv")
     table = tmp_path / "same.csv"
     table.write_text("node,name,quantity,unit,x,y,z,dx,dy,dz,fe_node,setup\n"
-                     "900,hammer,force,N,0,0,0,0,0,1,1,flexural\n")
+                     "900,hammer,force,N,0,0,0,0,0,1,1,flexural\n"
+                     "101,axle_01,acceleration,m/s^2,0,0.5,0,0,0,1,2,flexural\n")
     code = main(["lab", "diagnose", "--hammer", a, "--channels", str(table), "--hammer", b, "--channels",
                  str(table), "--fem", fem, "--points", points, "--out", str(tmp_path / "out")])
     assert code == 1
     err = capsys.readouterr().err
     assert "same name 'flexural'" in err and a in err and b in err
+    assert not (tmp_path / "out").exists()
 
 
 def test_diagnosis_json_converter_makes_strict_json():
