@@ -85,10 +85,14 @@ def _describe_campaign(files: dict[str, Path], brief: bool = False) -> None:
 def _cmd_simulate(args: argparse.Namespace) -> int:
     from lab_data.campaign import simulate
 
+    from railmodal.output import staged_output
+
     t0 = time.perf_counter()
-    files = simulate(args.scenario, args.out, progress=None if args.quiet else _progress, fe_max_hz=args.fe_max_hz,
-                     fe_export_hz=args.fe_export_hz, fe_style=args.fe_style,
-                     seed=args.seed, n_hits=args.hits)
+    with staged_output(args.out) as tmp:
+        written = simulate(args.scenario, tmp, progress=None if args.quiet else _progress, fe_max_hz=args.fe_max_hz,
+                           fe_export_hz=args.fe_export_hz, fe_style=args.fe_style,
+                           seed=args.seed, n_hits=args.hits)
+    files = {key: Path(args.out) / path.relative_to(tmp) for key, path in written.items()}
     _describe_campaign(files)
     print(f"done in {time.perf_counter() - t0:.1f} s")
     return 0
@@ -286,24 +290,25 @@ def build_parser() -> argparse.ArgumentParser:
     lab_sub = lab.add_subparsers(dest="lab_command", required=True)
     sim = lab_sub.add_parser("simulate", help="write the files of one impact-test campaign")
     sim.add_argument("--scenario", required=True, choices=_scenario_names())
-    sim.add_argument("--out", required=True, help="output folder")
-    sim.add_argument("--fe-max-hz", type=float, default=500.0,
+    sim.add_argument("--out", required=True, type=output_folder("--out"), help="output folder")
+    sim.add_argument("--fe-max-hz", type=bounded_float("--fe-max-hz", 50.0, 5000.0, unit="Hz"), default=500.0,
                      help="highest truth mode synthesised and, by default, exported (default 500)")
-    sim.add_argument("--fe-export-hz", type=float, default=None,
+    sim.add_argument("--fe-export-hz", type=bounded_float("--fe-export-hz", 50.0, 10000.0, unit="Hz"), default=None,
                      help="highest design FE mode exported if above --fe-max-hz (e.g. 2000: the basis structural "
                           "modifications such as bearings need)")
     sim.add_argument("--fe-style", choices=("mesh", "beam"), default="mesh",
                      help="style of the design FE export: mesh (the lab's 3D shell/beam mesh, default) or beam (a "
                           "design office's rotor-dynamics model: beam axle, lumped hubs, discs and axleboxes, rims "
                           "on web springs, its own node numbers); the hammer data are the same")
-    sim.add_argument("--seed", type=int, default=1863, help="random seed of hits and noise")
-    sim.add_argument("--hits", type=int, default=6, help="hits per setup (>= 5)")
+    sim.add_argument("--seed", type=bounded_int("--seed", 0, 2**32 - 1), default=1863,
+                     help="random seed of hits and noise")
+    sim.add_argument("--hits", type=bounded_int("--hits", 5, 100), default=6, help="hits per setup, 5 to 100")
     sim.set_defaults(func=_cmd_simulate)
     sc = lab_sub.add_parser("scenarios", help="list the scenarios")
     sc.set_defaults(func=_cmd_scenarios)
     rd = lab_sub.add_parser("render", help="PNG pictures of the design wheelset and its first modes")
-    rd.add_argument("--out", required=True)
-    rd.add_argument("--modes", type=int, default=6)
+    rd.add_argument("--out", required=True, type=output_folder("--out"))
+    rd.add_argument("--modes", type=bounded_int("--modes", 1, 60), default=6, help="modes rendered, 1 to 60 (default 6)")
     rd.set_defaults(func=_cmd_render)
     ident = lab_sub.add_parser("identify", help="identify modes from a hammer-test file or exported FRFs")
     source = ident.add_mutually_exclusive_group(required=True)

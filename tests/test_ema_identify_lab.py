@@ -26,9 +26,9 @@ def test_lab_acceptance(scenario, setup, record_property):
     ident = ema.identify(frf, band_hz=(10, 500), max_order=100)
     st = manifest(scenario)["setups"][setup]
     m = match_to_truth(ident.modes, st)
-    record_property("worst_df_percent", 100 * m.worst_df)
-    record_property("worst_dzeta_percent", 100 * m.worst_dzeta)
-    record_property("worst_mac", m.worst_mac)
+    record_property("worst_df_percent", float(100 * m.worst_df))
+    record_property("worst_dzeta_percent", float(100 * m.worst_dzeta))
+    record_property("worst_mac", float(m.worst_mac))
     print(f"\n{scenario}/{setup}: {len(ident.modes)} modes; worst |df|/f {100 * m.worst_df:.5f} %, "
           f"|dzeta|/zeta {100 * m.worst_dzeta:.3f} %, MAC {m.worst_mac:.6f}; timings {ident.timings}")
     assert_acceptance(m, f"{scenario}/{setup}")
