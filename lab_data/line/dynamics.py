@@ -556,7 +556,7 @@ def simulate_passage(vehicle: Vehicle, layout: TrackLayout, passage: PassageInpu
     fit = unit_loss_fit()
     nb = fit.tau.size
     n_slots = 2 * N1 if layout.continuous else ts.ns
-    sup = np.zeros((4, 5, n_slots))
+    sup = np.zeros((4, 4, n_slots))
     pb = np.zeros((4, nb, n_slots))
     sb = np.zeros((4, nb, n_slots))
     par = np.zeros((4, N_PAR, n_slots))
@@ -606,7 +606,7 @@ def simulate_passage(vehicle: Vehicle, layout: TrackLayout, passage: PassageInpu
         u_sl = st["slot_u"] @ comp
         f_sl = st["slot_f"] @ comp
         sup[rd, 0] = u_sl
-        sup[rd, 2] = -f_sl / par[rd, 2]  # subplate carries the pad force
+        sup[rd, 1] = -f_sl / par[rd, 2]  # plate z: the subplate carries the pad force
         lc, lsn = ts.shapes(d, Xw[on, 0])
         if layout.continuous:
             Pc[rd] = f_sl[:N1] * ts.W[d] * ts.Lfac

@@ -5,6 +5,11 @@ d 0 = vertical z, 1 = lateral y); rail modes split into cosine and sine blocks `
 ``n = 0..N`` (the sine mode of harmonic 0 does not exist and stays zero); supports ``[rd, slot]``;
 vehicle complex modes split into real and imaginary parts ``[m]``. The algorithm is the one of the
 :mod:`lab_data.line.dynamics` docstring; the comments here only say how the arrays implement it.
+
+Speed (before tuning, about half of a step's time was in the supports, a quarter in the vehicle modes): numba
+cannot tell LLVM that two arrays do not overlap, and LLVM gives up vectorising a loop that writes several
+arrays (too many run-time overlap checks); the state updates are therefore written one array per loop, which LLVM
+vectorises. The FFT does two radix-2 stages per pass in registers and takes its input in bit-reversed order.
 """
 
 from __future__ import annotations
@@ -12,29 +17,98 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["passage_kernel", "assign_slot", "supports_step", "fft_tables", "fft_inplace", "N_PAR"]
+__all__ = ["passage_kernel", "assign_slot", "supports_step", "fft_tables", "fft_inplace", "fft_butterflies",
+           "N_PAR"]
 
 
-def fft_tables(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Bit-reversal permutation and flat butterfly tables (a, b, cos, sin) of a radix-2 FFT of length n."""
+def fft_tables(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Bit-reversal permutation and per-stage twiddles of a radix-2 FFT of length n.
+
+    Stage ``s`` (butterfly half-width ``h = 2**s``) uses ``cos(2πk/2h), sin(2πk/2h)``, k < h, stored from
+    index ``h − 1`` of the flat tables (contiguous per stage, so the inner butterfly loop reads them in order).
+    """
     bits = int(np.log2(n))
     bitrev = np.array([int(format(i, f"0{bits}b")[::-1], 2) for i in range(n)], dtype=np.int64)
-    ia, ib, wr, wi = [], [], [], []
-    size = 2
-    while size <= n:
-        half = size // 2
-        for start in range(0, n, size):
-            for k in range(half):
-                ia.append(start + k)
-                ib.append(start + k + half)
-                wr.append(np.cos(2 * np.pi * k / size))
-                wi.append(np.sin(2 * np.pi * k / size))
-        size *= 2
-    return bitrev, np.array(ia, dtype=np.int64), np.array(ib, dtype=np.int64), np.array(wr), np.array(wi)
+    wr = np.empty(max(n - 1, 1))
+    wi = np.empty(max(n - 1, 1))
+    half = 1
+    while half < n:
+        k = np.arange(half)
+        wr[half - 1:2 * half - 1] = np.cos(2 * np.pi * k / (2 * half))
+        wi[half - 1:2 * half - 1] = np.sin(2 * np.pi * k / (2 * half))
+        half *= 2
+    return bitrev, wr, wi
 
 
 @numba.njit(cache=True, fastmath=True, error_model="numpy")
-def fft_inplace(re, im, inverse, bitrev, ia, ib, wr, wi):
+def fft_butterflies(re, im, inverse, wr, wi):
+    """Radix-2 decimation-in-time butterflies of an input already in bit-reversed order (output natural).
+
+    ``inverse`` uses e^{+i...}; no 1/n scaling. Two consecutive stages are done together on four points
+    held in registers (a radix-4 pass made of the same radix-2 butterflies and twiddles, so the result is
+    the radix-2 one, with half the memory traffic); a last odd stage is done alone.
+    """
+    n = re.size
+    sgn = 1.0 if inverse else -1.0
+    h = 1
+    while h < n:
+        if 4 * h <= n:
+            o1 = h - 1
+            o2 = 2 * h - 1
+            for start in range(0, n, 4 * h):
+                for k in range(h):
+                    i0 = start + k
+                    i1 = i0 + h
+                    i2 = i1 + h
+                    i3 = i2 + h
+                    r0, m0, r1, m1 = re[i0], im[i0], re[i1], im[i1]
+                    r2, m2, r3, m3 = re[i2], im[i2], re[i3], im[i3]
+                    # stage of half-width h: pairs (0, 1) and (2, 3), twiddle k of that stage
+                    c = wr[o1 + k]
+                    d = sgn * wi[o1 + k]
+                    tr = c * r1 - d * m1
+                    ti = c * m1 + d * r1
+                    r1, m1, r0, m0 = r0 - tr, m0 - ti, r0 + tr, m0 + ti
+                    tr = c * r3 - d * m3
+                    ti = c * m3 + d * r3
+                    r3, m3, r2, m2 = r2 - tr, m2 - ti, r2 + tr, m2 + ti
+                    # stage of half-width 2h: pairs (0, 2) with twiddle k, (1, 3) with twiddle k + h
+                    c = wr[o2 + k]
+                    d = sgn * wi[o2 + k]
+                    tr = c * r2 - d * m2
+                    ti = c * m2 + d * r2
+                    re[i2] = r0 - tr
+                    im[i2] = m0 - ti
+                    re[i0] = r0 + tr
+                    im[i0] = m0 + ti
+                    c = wr[o2 + k + h]
+                    d = sgn * wi[o2 + k + h]
+                    tr = c * r3 - d * m3
+                    ti = c * m3 + d * r3
+                    re[i3] = r1 - tr
+                    im[i3] = m1 - ti
+                    re[i1] = r1 + tr
+                    im[i1] = m1 + ti
+            h *= 4
+        else:
+            o1 = h - 1
+            for start in range(0, n, 2 * h):
+                for k in range(h):
+                    a = start + k
+                    b = a + h
+                    c = wr[o1 + k]
+                    d = sgn * wi[o1 + k]
+                    tr = c * re[b] - d * im[b]
+                    ti = c * im[b] + d * re[b]
+                    re[b] = re[a] - tr
+                    im[b] = im[a] - ti
+                    re[a] += tr
+                    im[a] += ti
+            h *= 2
+
+
+@numba.njit(cache=True, fastmath=True, error_model="numpy")
+def fft_inplace(re, im, inverse, bitrev, wr, wi):
     """In-place radix-2 FFT from :func:`fft_tables`; ``inverse`` uses e^{+i...} and no 1/n scaling."""
     n = re.size
     for i in range(n):
@@ -42,18 +116,7 @@ def fft_inplace(re, im, inverse, bitrev, ia, ib, wr, wi):
         if j > i:
             re[i], re[j] = re[j], re[i]
             im[i], im[j] = im[j], im[i]
-    sgn = 1.0 if inverse else -1.0
-    for k in range(ia.size):
-        a = ia[k]
-        b = ib[k]
-        c = wr[k]
-        d = sgn * wi[k]
-        tr = c * re[b] - d * im[b]
-        ti = c * im[b] + d * re[b]
-        re[b] = re[a] - tr
-        im[b] = im[a] - ti
-        re[a] += tr
-        im[a] += ti
+    fft_butterflies(re, im, inverse, wr, wi)
 
 
 #: Rows of ``par[rd, :, slot]``.
@@ -106,25 +169,28 @@ def assign_slot(rd, i, col, table, par, fac, kb_unit, tau, dt, g0, Cf):
 
 
 @numba.njit(cache=True, fastmath=True, error_model="numpy")
-def supports_step(rd, n, U, f, dt, sup, pb, sb, par, Eb, fac):
+def supports_step(rd, n, U, f, dt, sup, pb, sb, par, Eb, fac, du, dz):
     """Implicit step of slots ``0..n-1`` of ``rd`` (trapezoidal plate, exponential Maxwell branches: exactly four).
 
     ``U[i]`` is the rail's displacement at slot i at the end of the step without the slot's own force;
-    the force on the rail goes to ``f[i]``. ``sup[rd, k, i]``: k = 0 rail displacement u, 1 its mean rate over
-    the last step, 2 plate z, 3 plate velocity, 4 plate acceleration. The pad pulls rail and plate together
+    the force on the rail goes to ``f[i]``. ``sup[rd, k, i]``: k = 0 rail displacement u, 1 plate z, 2 plate
+    velocity, 3 plate acceleration. The pad pulls rail and plate together
     with ``T_p = k_p (u − z) + c_p Δ(u − z)/h + Σ p_b``, the subplate holds the plate with
     ``T_s = k_s z + c_s ż + Σ s_b``; the plate's ``m z̈ = T_p − T_s`` at the end of the step, with the
     trapezoidal ``ż, z̈`` and the branches' exponential update, gives ``Δz`` linear in ``Δu`` and the
     rail force ``f = −T_p`` linear in ``U`` (closed form).
+
+    ``du``, ``dz`` (length ≥ n) are scratch buffers for the increments: the force is solved slot by slot,
+    then each state row is updated in its own loop (loops that write one array are vectorised).
     """
     c2 = 2.0 / dt
     c4 = 4.0 / (dt * dt)
     e0, e1, e2, e3 = Eb[0], Eb[1], Eb[2], Eb[3]
     for i in range(n):
         u = sup[rd, 0, i]
-        z = sup[rd, 2, i]
-        zd = sup[rd, 3, i]
-        zdd = sup[rd, 4, i]
+        z = sup[rd, 1, i]
+        zd = sup[rd, 2, i]
+        zdd = sup[rd, 3, i]
         Tp0 = par[rd, P_KP, i] * (u - z)
         Ts0 = par[rd, P_KS, i] * z - par[rd, P_CS, i] * zd
         Tp0 += e0 * pb[rd, 0, i] + e1 * pb[rd, 1, i] + e2 * pb[rd, 2, i] + e3 * pb[rd, 3, i]
@@ -133,23 +199,25 @@ def supports_step(rd, n, U, f, dt, sup, pb, sb, par, Eb, fac):
         R0 = Tp0 - Ts0 - M0
         g = Tp0 - par[rd, P_APS, i] * R0
         fi = -(g + par[rd, P_D, i] * (U[i] - u)) * par[rd, P_INVDEN, i]
-        du = U[i] + par[rd, P_CF, i] * fi - u
-        dz = (par[rd, P_AP, i] * du + R0) * par[rd, P_INVS, i]
-        de = du - dz
-        pb[rd, 0, i] = e0 * pb[rd, 0, i] + fac[rd, 0, 0, i] * de
-        pb[rd, 1, i] = e1 * pb[rd, 1, i] + fac[rd, 0, 1, i] * de
-        pb[rd, 2, i] = e2 * pb[rd, 2, i] + fac[rd, 0, 2, i] * de
-        pb[rd, 3, i] = e3 * pb[rd, 3, i] + fac[rd, 0, 3, i] * de
-        sb[rd, 0, i] = e0 * sb[rd, 0, i] + fac[rd, 1, 0, i] * dz
-        sb[rd, 1, i] = e1 * sb[rd, 1, i] + fac[rd, 1, 1, i] * dz
-        sb[rd, 2, i] = e2 * sb[rd, 2, i] + fac[rd, 1, 2, i] * dz
-        sb[rd, 3, i] = e3 * sb[rd, 3, i] + fac[rd, 1, 3, i] * dz
-        sup[rd, 4, i] = c4 * dz - 2.0 * c2 * zd - zdd
-        sup[rd, 3, i] = c2 * dz - zd
-        sup[rd, 2, i] = z + dz
-        sup[rd, 1, i] = du / dt
-        sup[rd, 0, i] = u + du
+        dui = U[i] + par[rd, P_CF, i] * fi - u
         f[i] = fi
+        du[i] = dui
+        dz[i] = (par[rd, P_AP, i] * dui + R0) * par[rd, P_INVS, i]
+    for b in range(4):
+        e = Eb[b]
+        for i in range(n):
+            pb[rd, b, i] = e * pb[rd, b, i] + fac[rd, 0, b, i] * (du[i] - dz[i])
+        for i in range(n):
+            sb[rd, b, i] = e * sb[rd, b, i] + fac[rd, 1, b, i] * dz[i]
+    # plate acceleration and velocity (trapezoidal; the acceleration first: it needs the old velocity)
+    for i in range(n):
+        sup[rd, 3, i] = c4 * dz[i] - 2.0 * c2 * sup[rd, 2, i] - sup[rd, 3, i]
+    for i in range(n):
+        sup[rd, 2, i] = c2 * dz[i] - sup[rd, 2, i]
+    for i in range(n):
+        sup[rd, 1, i] += dz[i]
+    for i in range(n):
+        sup[rd, 0, i] += du[i]
 
 
 @numba.njit(cache=True)
@@ -181,7 +249,7 @@ def _solve4(J, r, out):
 def passage_kernel(i0, i1, dt, Xw, rough, theta, a_y, bogie_idx,
                    xc, xs, vc, vs, Pc, Ps, Pcc, Pcs, coef, W, k1, Gr_self, Gr_pair, wheel_rail,
                    ns, continuous, Cf_point, Lfac, sup, pb, sb, par, fac, table, slot_sleeper, kb_unit, tau, Eb,
-                   g0, bitrev, ia, ib, wr, wi,
+                   g0, bitrev, wr, wi,
                    sr, si, bur, bui, lamr, lami, Er, Ei, b0r, b0i, b1r, b1i, br, bi, cr, ci, Gv, snr, sni, C_H,
                    F_hist, acc, Fout, rail_out, wheel_out, newton_fail):
     """Advance the passage from step ``i0`` to ``i1`` (exclusive), updating every state array in place."""
@@ -194,20 +262,19 @@ def passage_kernel(i0, i1, dt, Xw, rough, theta, a_y, bogie_idx,
     xts = np.empty_like(xc)
     vtc = np.empty_like(xc)
     vts = np.empty_like(xc)
-    hc = np.empty(N1)
-    hs = np.empty(N1)
     Psc = np.zeros_like(xc)
     Pss = np.zeros_like(xc)
     cs = np.empty((4, N1))
     sn = np.empty((4, N1))
-    bre = np.empty(max(ns, 1))
-    bim = np.empty(max(ns, 1))
+    bre = np.empty((2, max(ns, 1)))
+    bim = np.empty((2, max(ns, 1)))
     are = np.empty(max(ns, 1))
     aim = np.empty(max(ns, 1))
     Ubuf = np.empty(nslot)
     fbuf = np.empty(nslot)
-    Ubuf2 = np.empty(nslot)
     fbuf2 = np.empty(nslot)
+    dub = np.empty(nslot)
+    dzb = np.empty(nslot)
     last_q0 = -(2**62)
     # harmonic n folds onto support-DFT bin n mod ns; bin m's mirror is (ns - m) mod ns
     alias = np.zeros(N1, dtype=np.int64)
@@ -217,8 +284,20 @@ def passage_kernel(i0, i1, dt, Xw, rough, theta, a_y, bogie_idx,
             alias[n] = n % ns
         for m in range(ns):
             mirror[m] = (ns - m) % ns
+    # the two wheels on each rail (every rail carries one wheel of each wheelset)
+    rail_wheels = np.zeros((2, 2), dtype=np.int64)
+    for rail in range(2):
+        j = 0
+        for w in range(4):
+            if wheel_rail[w] == rail and j < 2:
+                rail_wheels[rail, j] = w
+                j += 1
     sfr = np.empty(nc)
     sfi = np.empty(nc)
+    ubr = np.empty(nc)
+    ubi = np.empty(nc)
+    cfr = np.empty(nc)
+    cfi = np.empty(nc)
     ucr = np.zeros((4, 2))  # rail displacement at each wheel without this step's contact force: (z, y)
     vfree = np.zeros(8)
     Fp = np.zeros(4)
@@ -247,96 +326,114 @@ def passage_kernel(i0, i1, dt, Xw, rough, theta, a_y, bogie_idx,
         for w in range(4):
             ny[w] = -np.sin(theta[w, it])
             nz[w] = np.cos(theta[w, it])
-            c1 = np.cos(k1 * Xw[w, it])
-            s1 = np.sin(k1 * Xw[w, it])
-            c = 1.0
-            s = 0.0
-            for n in range(N1):
-                cs[w, n] = c
-                sn[w, n] = s
-                c, s = c * c1 - s * s1, s * c1 + c * s1
             Fp[w] = F_hist[0, w]  # Newton's starting point
+        # cos/sin(n k1 X) by the angle-addition recurrence; the four wheels' chains interleaved (they are
+        # latency-bound one by one)
+        a0 = np.cos(k1 * Xw[0, it])
+        b0 = np.sin(k1 * Xw[0, it])
+        a1 = np.cos(k1 * Xw[1, it])
+        b1 = np.sin(k1 * Xw[1, it])
+        a2 = np.cos(k1 * Xw[2, it])
+        b2 = np.sin(k1 * Xw[2, it])
+        a3 = np.cos(k1 * Xw[3, it])
+        b3 = np.sin(k1 * Xw[3, it])
+        c0, s0, c1_, s1_, c2, s2, c3, s3 = 1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 0.0
+        for n in range(N1):
+            cs[0, n] = c0
+            sn[0, n] = s0
+            cs[1, n] = c1_
+            sn[1, n] = s1_
+            cs[2, n] = c2
+            sn[2, n] = s2
+            cs[3, n] = c3
+            sn[3, n] = s3
+            c0, s0 = c0 * a0 - s0 * b0, s0 * a0 + c0 * b0
+            c1_, s1_ = c1_ * a1 - s1_ * b1, s1_ * a1 + c1_ * b1
+            c2, s2 = c2 * a2 - s2 * b2, s2 * a2 + c2 * b2
+            c3, s3 = c3 * a3 - s3 * b3, s3 * a3 + c3 * b3
         # --- rails: free propagation
         for rd in range(4):
             d = rd % 2
+            # (one array written per loop: vectorised)
             for n in range(N1):
                 xtc[rd, n] = coef[d, 0, n] * xc[rd, n] + coef[d, 1, n] * vc[rd, n] + coef[d, 4, n] * Pc[rd, n]
+            for n in range(N1):
                 vtc[rd, n] = coef[d, 2, n] * xc[rd, n] + coef[d, 3, n] * vc[rd, n] + coef[d, 6, n] * Pc[rd, n]
+            for n in range(N1):
                 xts[rd, n] = coef[d, 0, n] * xs[rd, n] + coef[d, 1, n] * vs[rd, n] + coef[d, 4, n] * Ps[rd, n]
+            for n in range(N1):
                 vts[rd, n] = coef[d, 2, n] * xs[rd, n] + coef[d, 3, n] * vs[rd, n] + coef[d, 6, n] * Ps[rd, n]
         # --- supports of each rail, both directions: predicted contact load, solve, within-step response
+        # (the contact forces of the last step act within this one too: their projection from the last step;
+        # the wheels have moved by a few mm, the supports only need the within-step effect)
         for rail in range(2):
-            if not continuous:
-                for i in range(ns):
-                    are[i] = 0.0
-                    aim[i] = 0.0
-            for d in range(2):
-                rd = 2 * rail + d
-                # the contact forces of the last step act within this one too (their projection from the last
-                # step: the wheels have moved by a few mm, the supports only need the within-step effect)
-                for n in range(N1):
-                    hc[n] = xtc[rd, n] + coef[d, 5, n] * Pcc[rd, n]
-                    hs[n] = xts[rd, n] + coef[d, 5, n] * Pcs[rd, n]
-                if continuous:
-                    # one foundation oscillator per mode: slot n (cosine), N1 + n (sine)
+            if continuous:
+                # one foundation oscillator per mode: slot n (cosine), N1 + n (sine)
+                for d in range(2):
+                    rd = 2 * rail + d
                     for n in range(N1):
-                        Ubuf[n] = W[d, n] * hc[n]
-                        Ubuf[N1 + n] = W[d, n] * hs[n]
-                    supports_step(rd, 2 * N1, Ubuf, fbuf, dt, sup, pb, sb, par, Eb, fac)
+                        Ubuf[n] = W[d, n] * (xtc[rd, n] + coef[d, 5, n] * Pcc[rd, n])
+                        Ubuf[N1 + n] = W[d, n] * (xts[rd, n] + coef[d, 5, n] * Pcs[rd, n])
+                    supports_step(rd, 2 * N1, Ubuf, fbuf, dt, sup, pb, sb, par, Eb, fac, dub, dzb)
                     for n in range(N1):
                         Psc[rd, n] = fbuf[n] * W[d, n] * Lfac[n]
                         Pss[rd, n] = fbuf[N1 + n] * W[d, n] * Lfac[n] if n > 0 else 0.0
-                else:
-                    # fold the harmonics onto the ns support positions: A_m = sum W_n (x_c - i x_s), m = n mod ns
-                    for i in range(ns):
-                        bre[i] = 0.0
-                        bim[i] = 0.0
-                    for n in range(N1):
-                        m = alias[n]
-                        bre[m] += W[d, n] * hc[n]
-                        bim[m] -= W[d, n] * hs[n]
-                    # Hermitian part (real synthesis); z goes to the real, y to the imaginary part of one FFT
-                    for m in range(ns):
-                        mm = mirror[m]
-                        hr = 0.5 * (bre[m] + bre[mm])
-                        hi = 0.5 * (bim[m] - bim[mm])
-                        if d == 0:
-                            are[m] += hr
-                            aim[m] += hi
-                        else:
-                            are[m] -= hi
-                            aim[m] += hr
-            if continuous:
+                        xtc[rd, n] += coef[d, 5, n] * Psc[rd, n]
+                        vtc[rd, n] += coef[d, 7, n] * Psc[rd, n]
+                        xts[rd, n] += coef[d, 5, n] * Pss[rd, n]
+                        vts[rd, n] += coef[d, 7, n] * Pss[rd, n]
                 continue
-            fft_inplace(are, aim, True, bitrev, ia, ib, wr, wi)
+            # fold the harmonics onto the ns support positions: A_m = sum W_n (x_c - i x_s), m = n mod ns
+            for d in range(2):
+                rd = 2 * rail + d
+                for i in range(ns):
+                    bre[d, i] = 0.0
+                    bim[d, i] = 0.0
+                for n in range(N1):
+                    m = alias[n]
+                    bre[d, m] += W[d, n] * (xtc[rd, n] + coef[d, 5, n] * Pcc[rd, n])
+                    bim[d, m] -= W[d, n] * (xts[rd, n] + coef[d, 5, n] * Pcs[rd, n])
+            # Hermitian parts (real synthesis): z goes to the real, y to the imaginary part of one FFT, written
+            # in bit-reversed order (the butterflies need no permutation pass)
+            for m in range(ns):
+                mm = mirror[m]
+                q = bitrev[m]
+                are[q] = 0.5 * (bre[0, m] + bre[0, mm]) - 0.5 * (bim[1, m] - bim[1, mm])
+                aim[q] = 0.5 * (bim[0, m] - bim[0, mm]) + 0.5 * (bre[1, m] + bre[1, mm])
+            fft_butterflies(are, aim, True, wr, wi)
+            supports_step(2 * rail, ns, are, fbuf, dt, sup, pb, sb, par, Eb, fac, dub, dzb)
+            supports_step(2 * rail + 1, ns, aim, fbuf2, dt, sup, pb, sb, par, Eb, fac, dub, dzb)
             for i in range(ns):
-                Ubuf[i] = are[i]
-                Ubuf2[i] = aim[i]
-            supports_step(2 * rail, ns, Ubuf, fbuf, dt, sup, pb, sb, par, Eb, fac)
-            supports_step(2 * rail + 1, ns, Ubuf2, fbuf2, dt, sup, pb, sb, par, Eb, fac)
-            for i in range(ns):
-                are[i] = fbuf[i]
-                aim[i] = fbuf2[i]
-            fft_inplace(are, aim, False, bitrev, ia, ib, wr, wi)
+                q = bitrev[i]
+                are[q] = fbuf[i]
+                aim[q] = fbuf2[i]
+            fft_butterflies(are, aim, False, wr, wi)
+            rz = 2 * rail
+            ry = rz + 1
             for n in range(N1):
                 m = alias[n]
                 mm = mirror[m]
-                # split FFT(f_z + i f_y) into FFT(f_z) and FFT(f_y)
+                # split FFT(f_z + i f_y) into FFT(f_z) and FFT(f_y); the rail modes take the support forces
                 zr = 0.5 * (are[m] + are[mm])
                 zi = 0.5 * (aim[m] - aim[mm])
                 yr = 0.5 * (aim[m] + aim[mm])
                 yi = -0.5 * (are[m] - are[mm])
-                Psc[2 * rail, n] = W[0, n] * zr
-                Pss[2 * rail, n] = -W[0, n] * zi
-                Psc[2 * rail + 1, n] = W[1, n] * yr
-                Pss[2 * rail + 1, n] = -W[1, n] * yi
-        for rd in range(4):
-            d = rd % 2
-            for n in range(N1):
-                xtc[rd, n] += coef[d, 5, n] * Psc[rd, n]
-                vtc[rd, n] += coef[d, 7, n] * Psc[rd, n]
-                xts[rd, n] += coef[d, 5, n] * Pss[rd, n]
-                vts[rd, n] += coef[d, 7, n] * Pss[rd, n]
+                pzc = W[0, n] * zr
+                pzs = -W[0, n] * zi
+                pyc = W[1, n] * yr
+                pys = -W[1, n] * yi
+                Psc[rz, n] = pzc
+                Pss[rz, n] = pzs
+                Psc[ry, n] = pyc
+                Pss[ry, n] = pys
+                xtc[rz, n] += coef[0, 5, n] * pzc
+                vtc[rz, n] += coef[0, 7, n] * pzc
+                xts[rz, n] += coef[0, 5, n] * pzs
+                vts[rz, n] += coef[0, 7, n] * pzs
+                xtc[ry, n] += coef[1, 5, n] * pyc
+                vtc[ry, n] += coef[1, 7, n] * pyc
+                xts[ry, n] += coef[1, 5, n] * pys
+                vts[ry, n] += coef[1, 7, n] * pys
         # rail displacement at the wheels (supports included, this step's contact forces excluded)
         for w in range(4):
             for d in range(2):
@@ -348,10 +445,15 @@ def passage_kernel(i0, i1, dt, Xw, rough, theta, a_y, bogie_idx,
         # --- vehicle: free propagation, slow inputs taken at the end of the step
         ay = a_y[it]
         for m in range(nc):
-            ur = br[8, m] * ay + br[9, m]
-            ui = bi[8, m] * ay + bi[9, m]
-            sfr[m] = Er[m] * sr[m] - Ei[m] * si[m] + b0r[m] * bur[m] - b0i[m] * bui[m] + b1r[m] * ur - b1i[m] * ui
-            sfi[m] = Er[m] * si[m] + Ei[m] * sr[m] + b0r[m] * bui[m] + b0i[m] * bur[m] + b1r[m] * ui + b1i[m] * ur
+            ubr[m] = br[8, m] * ay + br[9, m]
+            ubi[m] = bi[8, m] * ay + bi[9, m]
+        # (one array written per loop throughout: such loops are vectorised)
+        for m in range(nc):
+            sfr[m] = (Er[m] * sr[m] - Ei[m] * si[m] + b0r[m] * bur[m] - b0i[m] * bui[m]
+                      + b1r[m] * ubr[m] - b1i[m] * ubi[m])
+        for m in range(nc):
+            sfi[m] = (Er[m] * si[m] + Ei[m] * sr[m] + b0r[m] * bui[m] + b0i[m] * bur[m]
+                      + b1r[m] * ubi[m] + b1i[m] * ubr[m])
         for k in range(8):
             acc_v = 0.0
             for m in range(nc):
@@ -402,44 +504,54 @@ def passage_kernel(i0, i1, dt, Xw, rough, theta, a_y, bogie_idx,
         # --- rails receive the contact forces
         for rd in range(4):
             d = rd % 2
-            rail = rd // 2
+            wa = rail_wheels[rd // 2, 0]
+            wb = rail_wheels[rd // 2, 1]
+            ca = -F[wa] * (nz[wa] if d == 0 else ny[wa])
+            cb = -F[wb] * (nz[wb] if d == 0 else ny[wb])
+            # (one array written per loop: vectorised)
             for n in range(N1):
-                hc[n] = 0.0
-                hs[n] = 0.0
-            for w in range(4):
-                if wheel_rail[w] != rail:
-                    continue
-                comp = -F[w] * (nz[w] if d == 0 else ny[w])
-                for n in range(N1):
-                    g = W[d, n] * comp
-                    hc[n] += g * cs[w, n]
-                    hs[n] += g * sn[w, n]
+                Pcc[rd, n] = W[d, n] * ca * cs[wa, n] + W[d, n] * cb * cs[wb, n]
             for n in range(N1):
-                xc[rd, n] = xtc[rd, n] + coef[d, 5, n] * hc[n]
-                vc[rd, n] = vtc[rd, n] + coef[d, 7, n] * hc[n]
-                xs[rd, n] = xts[rd, n] + coef[d, 5, n] * hs[n]
-                vs[rd, n] = vts[rd, n] + coef[d, 7, n] * hs[n]
-                Pc[rd, n] = Psc[rd, n] + hc[n]
-                Ps[rd, n] = Pss[rd, n] + hs[n]
-                Pcc[rd, n] = hc[n]
-                Pcs[rd, n] = hs[n]
+                Pcs[rd, n] = W[d, n] * ca * sn[wa, n] + W[d, n] * cb * sn[wb, n]
+            for n in range(N1):
+                xc[rd, n] = xtc[rd, n] + coef[d, 5, n] * Pcc[rd, n]
+            for n in range(N1):
+                vc[rd, n] = vtc[rd, n] + coef[d, 7, n] * Pcc[rd, n]
+            for n in range(N1):
+                xs[rd, n] = xts[rd, n] + coef[d, 5, n] * Pcs[rd, n]
+            for n in range(N1):
+                vs[rd, n] = vts[rd, n] + coef[d, 7, n] * Pcs[rd, n]
+            for n in range(N1):
+                Pc[rd, n] = Psc[rd, n] + Pcc[rd, n]
+            for n in range(N1):
+                Ps[rd, n] = Pss[rd, n] + Pcs[rd, n]
         # --- vehicle receives them; sensor accelerations from ds/dt = λ s + b u
+        fy0 = F[0] * ny[0]
+        fz0 = F[0] * nz[0]
+        fy1 = F[1] * ny[1]
+        fz1 = F[1] * nz[1]
+        fy2 = F[2] * ny[2]
+        fz2 = F[2] * nz[2]
+        fy3 = F[3] * ny[3]
+        fz3 = F[3] * nz[3]
+        # modal input of the contact forces (a loop that only writes two arrays: vectorised)
         for m in range(nc):
-            gr = br[8, m] * ay + br[9, m]
-            gi = bi[8, m] * ay + bi[9, m]
-            cr_ = 0.0
-            ci_ = 0.0
-            for w in range(4):
-                fy = F[w] * ny[w]
-                fz = F[w] * nz[w]
-                cr_ += br[2 * w, m] * fy + br[2 * w + 1, m] * fz
-                ci_ += bi[2 * w, m] * fy + bi[2 * w + 1, m] * fz
-            sr[m] = sfr[m] + b1r[m] * cr_ - b1i[m] * ci_
-            si[m] = sfi[m] + b1r[m] * ci_ + b1i[m] * cr_
-            bur[m] = gr + cr_
-            bui[m] = gi + ci_
-            # reuse sfr/sfi for ds/dt
+            cfr[m] = (br[0, m] * fy0 + br[1, m] * fz0 + br[2, m] * fy1 + br[3, m] * fz1
+                      + br[4, m] * fy2 + br[5, m] * fz2 + br[6, m] * fy3 + br[7, m] * fz3)
+            cfi[m] = (bi[0, m] * fy0 + bi[1, m] * fz0 + bi[2, m] * fy1 + bi[3, m] * fz1
+                      + bi[4, m] * fy2 + bi[5, m] * fz2 + bi[6, m] * fy3 + bi[7, m] * fz3)
+        for m in range(nc):
+            sr[m] = sfr[m] + b1r[m] * cfr[m] - b1i[m] * cfi[m]
+        for m in range(nc):
+            si[m] = sfi[m] + b1r[m] * cfi[m] + b1i[m] * cfr[m]
+        for m in range(nc):
+            bur[m] = ubr[m] + cfr[m]
+        for m in range(nc):
+            bui[m] = ubi[m] + cfi[m]
+        # reuse sfr/sfi for ds/dt
+        for m in range(nc):
             sfr[m] = lamr[m] * sr[m] - lami[m] * si[m] + bur[m]
+        for m in range(nc):
             sfi[m] = lamr[m] * si[m] + lami[m] * sr[m] + bui[m]
         for k in range(nsens):
             a = 0.0
