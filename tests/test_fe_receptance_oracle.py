@@ -190,8 +190,11 @@ def test_undamped_in_service_equals_complete_modal_sum(points):
     H = fe_receptance(points, DOFS, f, in_service=True, suspension=undamped)
     Hm = _modal_sum(modes, rs.model, points, DOFS, f, lambda fr: 0.0 * fr)
     err = np.max(np.abs(H - Hm), axis=(0, 1)) / np.max(np.abs(Hm), axis=(0, 1))
-    # measured <= 4e-8 (at 5 and 8 Hz, beside the undamped bounce and roll resonances)
-    assert err.max() < 2e-7, dict(zip(f, err))
+    # measured <= 4e-8 at 5 and 8 Hz (beside the undamped bounce and roll resonances); at 1 Hz, in the
+    # quasi-static range of the stiff in-service system, round-off depends on BLAS's summation order:
+    # 1e-8 with threaded BLAS, 4.7e-7 with one thread (the suite's workers). A modelling difference
+    # would show at 1e-3 and above.
+    assert err.max() < 1e-6, dict(zip(f, err))
 
 
 def test_in_service_eigenfrequencies(points):

@@ -66,6 +66,9 @@ def test_cli_rejects_unknown_scenario(tmp_path):
 def test_cli_reports_errors_without_a_traceback(tmp_path, capsys):
     blocker = tmp_path / "file"
     blocker.write_text("x")
-    assert main(["-q", "lab", "simulate", "--scenario", "control", "--out", str(blocker / "sub")]) == 1
+    # an --out that cannot be created is refused when the command line is parsed (exit 2), naming the file
+    with pytest.raises(SystemExit) as exc:
+        main(["-q", "lab", "simulate", "--scenario", "control", "--out", str(blocker / "sub")])
     err = capsys.readouterr().err
-    assert err.startswith("railmodal: error:") and "Traceback" not in err
+    assert exc.value.code == 2 and "error: argument --out" in err and str(blocker) in err and "Traceback" not in err
+    assert not (blocker.parent / "sub").exists()
