@@ -735,7 +735,8 @@ def monitor(store, *, line: str | None = None, section_range: tuple[float, float
     st = store if isinstance(store, MonitoringStore) else MonitoringStore(store)
     lines = st.lines()
     if not lines:
-        raise StoreError(f"store {st.root} is empty (ingest runs first)")
+        what = "is empty" if Path(st.root).is_dir() else "does not exist"
+        raise StoreError(f"store {st.root} {what} (ingest runs first: railmodal field ingest ... --store {st.root})")
     if line is None:
         if len(lines) > 1:
             raise StoreError(f"store {st.root} holds several lines {lines}; choose one (--line)")
