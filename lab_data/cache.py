@@ -16,10 +16,11 @@ import shutil
 import tempfile
 from dataclasses import asdict
 from pathlib import Path
+from typing import Callable
 
 from .campaign import CampaignConfig, plan_campaign, write_campaign
 
-__all__ = ["cache_root", "campaign_dir"]
+__all__ = ["cache_root", "campaign_dir", "cached_folder", "source_hash"]
 
 log = logging.getLogger(__name__)
 
@@ -29,12 +30,40 @@ def cache_root() -> Path:
     return Path(os.environ.get("RAILMODAL_CACHE", Path.home() / ".cache" / "railmodal"))
 
 
-def _source_hash() -> str:
+def source_hash(*folders: Path) -> str:
+    """Short hash of the ``*.py`` sources of ``folders`` (in that order): the code that shapes cached data."""
     h = hashlib.sha256()
-    for f in sorted(Path(__file__).parent.glob("*.py")):
-        h.update(f.name.encode())
-        h.update(f.read_bytes())
+    for folder in folders:
+        for f in sorted(Path(folder).glob("*.py")):
+            h.update(f.name.encode())
+            h.update(f.read_bytes())
     return h.hexdigest()[:12]
+
+
+def cached_folder(target: Path, complete: str, write: Callable[[Path], object], what: str) -> Path:
+    """``target``, written by ``write(folder)`` first unless ``target / complete`` exists.
+
+    ``write`` fills a temporary sibling that is renamed to ``target``, so a crash never leaves a half folder
+    behind and two processes asking for the same folder at once both get the complete one (the later rename
+    fails and the first one's result is used).
+    """
+    if (target / complete).exists():
+        return target
+    target.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.partial-", dir=target.parent))
+    try:
+        write(tmp)
+        try:
+            tmp.rename(target)
+        except OSError:
+            # another process finished the same folder first
+            if not (target / complete).exists():
+                raise
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp, ignore_errors=True)
+    log.info("%s cached in %s", what, target)
+    return target
 
 
 def campaign_dir(scenario: str = "control", **config) -> Path:
@@ -56,22 +85,6 @@ def campaign_dir(scenario: str = "control", **config) -> Path:
     """
     cfg = CampaignConfig(scenario=scenario, **config)
     key = hashlib.sha256(json.dumps(asdict(cfg), sort_keys=True).encode()).hexdigest()[:12]
-    target = cache_root() / "lab" / f"{scenario}-{key}-{_source_hash()}"
-    if (target / "truth.json").exists():
-        return target
-    target.parent.mkdir(parents=True, exist_ok=True)
-    # write into a temporary sibling and rename, so a crash never leaves a half campaign behind
-    tmp = Path(tempfile.mkdtemp(prefix=f".{scenario}-", dir=target.parent))
-    try:
-        write_campaign(plan_campaign(cfg), tmp)
-        try:
-            tmp.rename(target)
-        except OSError:
-            # another process finished the same campaign first
-            if not (target / "truth.json").exists():
-                raise
-    finally:
-        if tmp.exists():
-            shutil.rmtree(tmp, ignore_errors=True)
-    log.info("campaign %s cached in %s", scenario, target)
-    return target
+    target = cache_root() / "lab" / f"{scenario}-{key}-{source_hash(Path(__file__).parent)}"
+    return cached_folder(target, "truth.json", lambda tmp: write_campaign(plan_campaign(cfg), tmp),
+                         f"campaign {scenario}")

@@ -15,28 +15,19 @@ from __future__ import annotations
 
 import hashlib
 import json
-import logging
-import shutil
-import tempfile
 from pathlib import Path
 from typing import Callable
 
-from ..cache import cache_root
+from ..cache import cache_root, cached_folder, source_hash
 from .campaign import LineCampaignConfig, plan_line_campaign, write_line_campaign
 
 __all__ = ["line_campaign_dir", "config_key"]
 
-log = logging.getLogger(__name__)
-
 
 def _source_hash() -> str:
-    """Hash of lab_data's and lab_data.line's sources (the wheelset FE and the line both shape the data)."""
-    h = hashlib.sha256()
+    """Hash of lab_data.line's and lab_data's sources (the wheelset FE and the line both shape the data)."""
     here = Path(__file__).parent
-    for f in sorted(here.glob("*.py")) + sorted(here.parent.glob("*.py")):
-        h.update(f.name.encode())
-        h.update(f.read_bytes())
-    return h.hexdigest()[:12]
+    return source_hash(here, here.parent)
 
 
 def config_key(config: LineCampaignConfig) -> str:
@@ -67,21 +58,7 @@ def line_campaign_dir(scenario: str = "nominal", *, progress: Callable[[str], No
     """
     cfg = LineCampaignConfig(scenario=scenario, **config)
     target = cache_root() / "line" / f"{scenario}-{config_key(cfg)}-{_source_hash()}"
-    if (target / "truth" / "truth.json").exists():
-        return target
-    target.parent.mkdir(parents=True, exist_ok=True)
-    # write into a temporary sibling and rename, so a crash never leaves a half campaign behind
-    tmp = Path(tempfile.mkdtemp(prefix=f".{scenario}-", dir=target.parent))
-    try:
-        write_line_campaign(plan_line_campaign(cfg), tmp, progress=progress, workers=workers)
-        try:
-            tmp.rename(target)
-        except OSError:
-            # another process finished the same campaign first
-            if not (target / "truth" / "truth.json").exists():
-                raise
-    finally:
-        if tmp.exists():
-            shutil.rmtree(tmp, ignore_errors=True)
-    log.info("line campaign %s cached in %s", scenario, target)
-    return target
+    return cached_folder(target, "truth/truth.json",
+                         lambda tmp: write_line_campaign(plan_line_campaign(cfg), tmp, progress=progress,
+                                                         workers=workers),
+                         f"line campaign {scenario}")

@@ -48,6 +48,7 @@ from pathlib import Path
 import numpy as np
 import scipy.linalg
 
+from ..cache import cache_root, source_hash
 from ..fe_model import rigid_body_vectors
 from ..scenarios import get_scenario
 from ..sensors import point_rows
@@ -168,7 +169,7 @@ class WheelsetModes:
 
 
 def _cache_dir() -> Path:
-    return Path(os.environ.get("RAILMODAL_CACHE", Path.home() / ".cache" / "railmodal")) / "line" / "wheelsets"
+    return cache_root() / "line" / "wheelsets"
 
 
 #: Version of the cached wheelset data's layout (bump when :func:`_solve_wheelset` changes what it stores).
@@ -177,11 +178,8 @@ WHEELSET_CACHE_VERSION = 2
 
 def _source_hash() -> str:
     """Hash of the virtual lab's FE sources (the truth wheelset) and of the cache layout version."""
-    h = hashlib.sha256(str(WHEELSET_CACHE_VERSION).encode())
-    for f in sorted(Path(__file__).resolve().parent.parent.glob("*.py")):
-        h.update(f.name.encode())
-        h.update(f.read_bytes())
-    return h.hexdigest()[:12]
+    lab = source_hash(Path(__file__).resolve().parent.parent)
+    return hashlib.sha256(f"{WHEELSET_CACHE_VERSION}-{lab}".encode()).hexdigest()[:12]
 
 
 def wheelset_modes(scenario: str, cutoff_hz: float) -> WheelsetModes:
