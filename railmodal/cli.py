@@ -249,7 +249,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     pictures = _render(out / "pictures", 4, args.quiet)
     print(f"pictures: {len(pictures)} PNG in {out / 'pictures'}")
     if not args.no_diagnose:
-        from railmodal.diagnose_command import run_lab_diagnosis
+        from receptance.diagnosis.workflow import run_lab_diagnosis
 
         print("running the lab workflow: identify -> pair -> hybrid model -> compare -> diagnose")
         setups = [(out / "flexural.uff", out / "flexural_channels.csv"),

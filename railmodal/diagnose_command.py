@@ -16,11 +16,14 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from railmodal.arguments import band_action, bounded_float, bounded_int, existing_file, output_folder
-from receptance.diagnosis.workflow import LabDiagnosis, SetupFiles, run_lab_diagnosis, to_jsonable
+from typing import TYPE_CHECKING
 
-__all__ = ["add_diagnose_parser", "cmd_diagnose", "summarise", "run_lab_diagnosis", "to_jsonable", "LabDiagnosis",
-           "run_staged"]
+from railmodal.arguments import band_action, bounded_float, bounded_int, existing_file, output_folder
+
+if TYPE_CHECKING:
+    from receptance.diagnosis.workflow import LabDiagnosis
+
+__all__ = ["add_diagnose_parser", "cmd_diagnose", "summarise", "run_staged"]
 
 #: most setups on one command line
 MAX_SETUP_OPTIONS = 20
@@ -65,6 +68,7 @@ def summarise(result: LabDiagnosis) -> list[str]:
 def run_staged(setups, fem, points, out, **kwargs) -> LabDiagnosis:
     """:func:`run_lab_diagnosis` into a temporary folder beside ``out`` that becomes ``out`` on success."""
     from railmodal.output import staged_output
+    from receptance.diagnosis.workflow import run_lab_diagnosis
 
     with staged_output(out) as tmp:
         result = run_lab_diagnosis(setups, fem, points, tmp, **kwargs)
@@ -82,6 +86,9 @@ class _SetupData(argparse.Action):
 
 def cmd_diagnose(args: argparse.Namespace) -> int:
     """Handler of ``railmodal lab diagnose`` (see :func:`add_diagnose_parser`)."""
+    # the library is imported by the handler, not at start-up: every other command would pay for it
+    from receptance.diagnosis.workflow import SetupFiles
+
     parser = args._diagnose_parser
     data, channels = list(args.setup_data or []), list(args.channels or [])
     if not data:

@@ -18,7 +18,7 @@ import pytest
 
 from lab_data.cache import campaign_dir
 from railmodal.cli import main
-from railmodal.diagnose_command import to_jsonable
+from receptance.diagnosis.workflow import to_jsonable
 from receptance.report import SECTION_TITLES
 
 IMG = '<img src="data:image/png;base64,'
