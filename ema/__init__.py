@@ -8,61 +8,49 @@ with the FE modes of :mod:`fem_import` by MAC. Its output (a mode set and the
 measured FRFs) feeds :mod:`receptance`.
 """
 
-# --- input side: channel tables, hammer-test reading, hit screening, FRF estimation ---
-from .channels import ChannelTableError, read_channels, validate_channels
-from .estimate import EstimationError, ForceWindow, auto_exp_decay, estimate_frf
-from .frf import FRFShapeError, FrequencyResponse
-from .hammer_io import (
-    ChannelDirectionWarning,
-    ChannelMismatchError,
-    FunctionTypeError,
-    HammerDataError,
-    HammerTest,
-    NonFiniteDataError,
-    SamplingError,
-    UFFReadError,
-    UnknownFormatError,
-    ZeroForceError,
-    read_hammer,
-)
-from .screening import Rejection, Screening, ScreeningConfig, screen_hits
-from .uff_frf import read_frf_uff
+# The public names are loaded lazily (PEP 562): ``import ema`` is free until a name is used, so the CLI and
+# the field side do not pay for pandas, scipy.cluster and the identification code at start-up.
+from __future__ import annotations
 
-__all__ = [
-    "ChannelTableError", "read_channels", "validate_channels",
-    "EstimationError", "ForceWindow", "auto_exp_decay", "estimate_frf",
-    "FRFShapeError", "FrequencyResponse",
-    "ChannelDirectionWarning", "ChannelMismatchError", "FunctionTypeError", "HammerDataError", "HammerTest",
-    "NonFiniteDataError", "SamplingError", "UFFReadError", "UnknownFormatError", "ZeroForceError", "read_hammer",
-    "Rejection", "Screening", "ScreeningConfig", "screen_hits",
-    "read_frf_uff",
-]
-# --- end of input side ---
+import importlib
 
-# --- identification: LSCE, stabilisation, automatic pole selection, refinement, LSFD ---
-from .identify import Identification, PoleCluster, RejectedPole, identify, select_poles, select_poles_at
-from .lsce import IdentificationError, PoleSweep, lsce, zoom_impulse_response
-from .lsfd import DEFAULT_RESIDUALS, LSFDResult, RefinedPoles, lsfd, mcf, mpc, mpd, refine_poles, synthesize
-from .modeset import ModeSet
-from .stabilisation import StabilisationDiagram, stabilisation_diagram
+#: submodule -> the public names it defines, grouped as the data flow runs
+_MODULES: dict[str, tuple[str, ...]] = {
+    # input side: channel tables, hammer-test reading, hit screening, FRF estimation
+    "channels": ("ChannelTableError", "read_channels", "validate_channels"),
+    "estimate": ("EstimationError", "ForceWindow", "auto_exp_decay", "estimate_frf"),
+    "frf": ("FRFShapeError", "FrequencyResponse"),
+    "hammer_io": ("ChannelDirectionWarning", "ChannelMismatchError", "FunctionTypeError", "HammerDataError",
+                  "HammerTest", "NonFiniteDataError", "SamplingError", "UFFReadError", "UnknownFormatError",
+                  "ZeroForceError", "read_hammer"),
+    "screening": ("Rejection", "Screening", "ScreeningConfig", "screen_hits"),
+    "uff_frf": ("read_frf_uff",),
+    # identification: LSCE, stabilisation, automatic pole selection, refinement, LSFD
+    "identify": ("Identification", "PoleCluster", "RejectedPole", "identify", "select_poles", "select_poles_at"),
+    "lsce": ("IdentificationError", "PoleSweep", "lsce", "zoom_impulse_response"),
+    "lsfd": ("DEFAULT_RESIDUALS", "LSFDResult", "RefinedPoles", "lsfd", "mcf", "mpc", "mpd", "refine_poles",
+             "synthesize"),
+    "modeset": ("ModeSet",),
+    "stabilisation": ("StabilisationDiagram", "stabilisation_diagram"),
+    # setups and pairing: merging mode lists, MAC pairing with FE modes, modes folders
+    "merge": ("merge_setups",),
+    "modes_io": ("ModesFolderError", "read_modeset", "write_modeset"),
+    "pairing": ("Pair", "Pairing", "describe_fe_mode", "fe_clusters", "mac_matrix", "pair_modes"),
+}
+_OWNER = {name: module for module, names in _MODULES.items() for name in names}
 
-__all__ += [
-    "Identification", "PoleCluster", "RejectedPole", "identify", "select_poles", "select_poles_at",
-    "IdentificationError", "PoleSweep", "lsce", "zoom_impulse_response",
-    "DEFAULT_RESIDUALS", "LSFDResult", "RefinedPoles", "lsfd", "mcf", "mpc", "mpd", "refine_poles", "synthesize",
-    "ModeSet",
-    "StabilisationDiagram", "stabilisation_diagram",
-]
-# --- end of identification ---
+__all__ = list(_OWNER)
 
-# --- setups and pairing: merging mode lists, MAC pairing with FE modes, modes folders ---
-from .merge import merge_setups
-from .modes_io import ModesFolderError, read_modeset, write_modeset
-from .pairing import Pair, Pairing, describe_fe_mode, fe_clusters, mac_matrix, pair_modes
 
-__all__ += [
-    "merge_setups",
-    "ModesFolderError", "read_modeset", "write_modeset",
-    "Pair", "Pairing", "describe_fe_mode", "fe_clusters", "mac_matrix", "pair_modes",
-]
-# --- end of setups and pairing ---
+def __getattr__(name: str):
+    try:
+        module = _OWNER[name]
+    except KeyError:
+        raise AttributeError(f"module 'ema' has no attribute {name!r}") from None
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value  # later look-ups do not come here again
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_OWNER))

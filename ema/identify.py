@@ -59,6 +59,7 @@ from .frf import FrequencyResponse
 from .lsce import IdentificationError, PoleSweep, band_lines, lsce
 from .lsfd import DEFAULT_RESIDUALS, LSFDResult, RefinedPoles, lsfd, mcf, refine_poles
 from .modeset import ModeSet
+from .limits import MAX_ORDER
 from .stabilisation import StabilisationDiagram, stabilisation_diagram
 
 __all__ = [
@@ -166,9 +167,6 @@ class Identification:
 # ------------------------------------------------------------------------- channel weights
 #: A channel whose robust level exceeds this multiple of the median channel's is weighted down to it.
 MAX_LEVEL_RATIO = 10.0
-#: Largest LSCE order :func:`identify` accepts (poles in the band; the thesis band holds a few dozen modes;
-#: order 100 takes 4 s, 200 9 s, 300 24 s on the virtual lab's 29 channels: the cost grows steeply).
-MAX_ORDER = 300
 
 
 def channel_weights(frf: FrequencyResponse, max_ratio: float = MAX_LEVEL_RATIO) -> np.ndarray:

@@ -31,7 +31,7 @@ import math
 import os
 from pathlib import Path
 
-__all__ = ["bounded_int", "bounded_float", "existing_file", "existing_folder", "output_folder", "band_action",
+__all__ = ["add_geometry_argument", "bounded_int", "bounded_float", "existing_file", "existing_folder", "output_folder", "band_action",
            "check_choice_list"]
 
 
@@ -199,3 +199,11 @@ def check_choice_list(parser: argparse.ArgumentParser, option: str, values, limi
     """Refuse more than ``limit`` repetitions of an ``action="append"`` option (argparse exit status 2)."""
     if values is not None and len(values) > limit:
         parser.error(f"argument {option}: at most {limit} {option} options, got {len(values)}")
+
+
+def add_geometry_argument(parser) -> None:
+    """``--geometry``: node coordinates for an FE export that has none (shared by every command reading an FE)."""
+    parser.add_argument("--geometry", default=None, type=existing_file("--geometry", "geometry"),
+                        help="node coordinates for an FE file without them (a Nastran punch): a UFF with dataset "
+                             "2411 or a Nastran bulk data file with GRID cards (default: a companion file of the "
+                             "same name, .bdf/.dat/.nas/.uff)")

@@ -29,8 +29,8 @@ import sys
 import time
 from pathlib import Path
 
-from ema.identify import MAX_ORDER
-from railmodal.arguments import band_action, bounded_float, bounded_int, existing_file, existing_folder, output_folder
+from ema.limits import MAX_ORDER
+from railmodal.arguments import add_geometry_argument, band_action, bounded_float, bounded_int, existing_file, existing_folder, output_folder
 from railmodal.diagnose_command import add_diagnose_parser, summarise
 from railmodal.field_commands import add_field_commands
 from railmodal.field_diagnose_command import add_field_diagnose_command
@@ -333,9 +333,7 @@ def build_parser() -> argparse.ArgumentParser:
                       help="modes folder written by 'lab identify' (repeat for several setups: they are merged)")
     pair.add_argument("--fem", required=True, type=existing_file("--fem", "FE modes"),
                       help="FE modes file (UFF 2411/2412/55 or Nastran .pch)")
-    pair.add_argument("--geometry", default=None, type=existing_file("--geometry", "geometry"),
-                      help="node coordinates for an FE file without them (a Nastran punch): a UFF with dataset 2411 "
-                           "or a Nastran bulk data file with GRID cards (default: a companion file of the same name)")
+    add_geometry_argument(pair)
     pair.add_argument("--mac-min", type=bounded_float("--mac-min", 0.0, 1.0, lo_open=True), default=0.8,
                       help="smallest MAC of a pair, in (0, 1] (default 0.8)")
     pair.add_argument("--out", required=True, type=output_folder("--out"))

@@ -18,7 +18,7 @@ from typing import Callable
 
 from typing import TYPE_CHECKING
 
-from railmodal.arguments import band_action, bounded_float, bounded_int, existing_file, output_folder
+from railmodal.arguments import add_geometry_argument, band_action, bounded_float, bounded_int, existing_file, output_folder
 
 if TYPE_CHECKING:
     from receptance.diagnosis.workflow import LabDiagnosis
@@ -115,7 +115,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
 
 def add_diagnose_parser(lab_subparsers) -> argparse.ArgumentParser:
     """Register ``railmodal lab diagnose`` on the ``lab`` subparsers; returns its parser."""
-    from ema.identify import MAX_ORDER
+    from ema.limits import MAX_ORDER
 
     d = lab_subparsers.add_parser(
         "diagnose", help="hammer tests or FRF files + FE export -> identify, pair, hybrid model, compare, diagnose; "
@@ -134,9 +134,7 @@ def add_diagnose_parser(lab_subparsers) -> argparse.ArgumentParser:
                    help="channel table CSV of the preceding --hammer or --frf file")
     d.add_argument("--fem", required=True, type=existing_file("--fem", "FE modes"),
                    help="FE modes file (UFF 2411/2412/55 or Nastran .pch)")
-    d.add_argument("--geometry", default=None, type=existing_file("--geometry", "geometry"),
-                   help="node coordinates for an FE file without them (a Nastran punch): a UFF with dataset 2411 or "
-                        "a Nastran bulk data file with GRID cards (default: a companion file of the same name)")
+    add_geometry_argument(d)
     d.add_argument("--total-mass", type=bounded_float("--total-mass", 0.0, 1e6, lo_open=True, unit="kg"),
                    default=None, help="the exported wheelset's mass [kg] to check the FE shapes' mass normalisation "
                                       "against (default: the physical range of a railway wheelset)")

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from railmodal.arguments import (band_action, bounded_float, bounded_int, existing_file, existing_folder,
+from railmodal.arguments import (add_geometry_argument, band_action, bounded_float, bounded_int, existing_file, existing_folder,
                                  output_folder)
 
 __all__ = ["add_model_commands"]
@@ -265,10 +265,7 @@ def add_model_commands(sub) -> None:
                    help="folder (or CSV) written by 'railmodal lab pair'")
     b.add_argument("--fem", required=True, type=existing_file("--fem", "FE modes"),
                    help="the FE modes file the pairing used (UFF 2411/2412/55 or Nastran .pch)")
-    b.add_argument("--geometry", default=None, type=existing_file("--geometry", "geometry"),
-                   help="node coordinates for an FE file without them (a Nastran punch): a UFF with dataset 2411 or "
-                        "a Nastran bulk data file with GRID cards (default: a companion file of the same name, "
-                        ".bdf/.dat/.nas/.uff)")
+    add_geometry_argument(b)
     b.add_argument("--points", required=True, type=existing_file("--points", "points table"),
                    help="points table CSV: name, fe_node, x, y, z (contact_L, axlebox_L...)")
     b.add_argument("--total-mass", type=bounded_float("--total-mass", 0.0, 1e6, lo_open=True, unit="kg"),

@@ -228,7 +228,7 @@ def _read_setup(s: SetupFiles, table, name: str, band, max_order: int, n_average
     info = {"setup": name, "channels": str(s.channels)}
     if s.hammer is not None:
         say(f"reading {s.hammer}")
-        test = ema.read_hammer(s.hammer, s.channels)
+        test = ema.read_hammer(s.hammer, table)  # the table read and checked before any work, not read again
         screening = ema.screen_hits(test, band_hz=band)
         frf = ema.estimate_frf(test, band_hz=band, screening=screening)
         force = test.force_channel
