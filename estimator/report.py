@@ -70,7 +70,7 @@ def write_report(estimate, path, *, figures: Mapping[str, Path] | None = None,
                           "significance": c.significance, "dx_mm": 1e3 * e.dx_m[w]} for w, c in e.circumference.items()])
     parts += [f"<h2>{SECTION_TITLES[2]}</h2>",
               f"<p>Wheelbase {e.wheelbase_m:.3f} m ({_e(e.wheelbase_source)}). Shortest wavelength the run resolves "
-              f"{1e3 * e.lambda_min_m:.1f} mm (speed gate / f_hi); each wheelset's profile has a whole number of "
+              f"{1e3 * e.lambda_min_m:.1f} mm (the run's slowest kept speed / f_hi); each wheelset's profile has a whole number of "
               "samples per wheel revolution.</p>", _table(e.odometry), _table(circ)]
     # 4
     f_lo, f_hi = e.band_hz

@@ -25,10 +25,13 @@ The result also gives the signed speed along the run's direction of travel
 
 **Spatial step.** A run resolves wavelengths ``λ ≥ v/f_hi`` where it is fast
 and ``λ ≤ v/f_lo`` where it is slow; the shortest wavelength a run resolves
-is ``λ_min = v_gate / f_hi`` (``v_gate`` the lowest speed quality control
-accepts). :func:`spatial_step` picks the largest step of the 1–2–5 series not
-above ``λ_min / 3`` (three samples per shortest wavelength: band-limited
-interpolation keeps the amplitude to < 0.1 dB, see :mod:`estimator.inversion`).
+is ``λ_min = v_slow / f_hi``, ``v_slow`` the slowest speed of the samples the
+run keeps (never below the speed gate quality control applies: a
+station-to-station run reaches the gate, a run recorded between stations
+does not and gets a coarser grid). :func:`spatial_step` picks the largest step
+of the 1–2–2.5–5 series not above ``λ_min / 3`` (three samples per shortest
+wavelength: band-limited interpolation keeps the amplitude to < 0.1 dB, see
+:mod:`estimator.inversion`).
 """
 
 from __future__ import annotations
@@ -239,7 +242,8 @@ def nice_step(limit: float) -> float:
     return best
 
 
-def spatial_step(speed_gate_m_s: float, f_hi_hz: float, samples_per_wavelength: float = 3.0) -> tuple[float, float]:
-    """(spatial step [m], shortest resolved wavelength [m]) for a run (module docstring)."""
-    lam_min = speed_gate_m_s / f_hi_hz
+def spatial_step(slowest_m_s: float, f_hi_hz: float, samples_per_wavelength: float = 3.0) -> tuple[float, float]:
+    """(spatial step [m], shortest resolved wavelength [m]) of a run whose slowest kept speed is ``slowest_m_s``
+    and whose inversion band ends at ``f_hi_hz`` (module docstring)."""
+    lam_min = slowest_m_s / f_hi_hz
     return nice_step(lam_min / samples_per_wavelength), lam_min

@@ -187,6 +187,8 @@ def comb(profile: np.ndarray, n_per_rev: int, revolutions: int) -> tuple[np.ndar
     Xz = np.where(valid, X, 0.0)
     R = int(revolutions)
     num = _triangle(Xz, R) - (R + 1) * Xz
+    if valid.shape[0] > 1 and (valid == valid[:1]).all():
+        valid = valid[:1]  # the usual case (sides and models of one wheelset share their mask): one weight sum
     den = _triangle(valid.astype(float), R) - (R + 1) * valid
     with np.errstate(invalid="ignore", divide="ignore"):
         per = np.where(den > 0.05 * R * (R + 1), num / den, np.nan)

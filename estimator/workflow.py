@@ -366,12 +366,17 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
     timings["read_qc"] = time.perf_counter() - t_start
     fs = run.fs
     f_lo, f_hi = cfg.f_lo_hz, cfg.f_hi(fs)
-    dx_target, lam_min = spatial_step(cfg.speed_gate_m_s, f_hi)
+    # the shortest wavelength this run resolves: its slowest speed where any channel is kept (never below the
+    # speed gate); a run without a slow stretch gets a coarser grid and costs less
+    t_run = run.t
+    kept = ~run.mask.masked.all(axis=0)
+    v_kept = np.abs(track.speed_at(t_run)[kept])
+    v_slow = max(cfg.speed_gate_m_s, float(v_kept.min())) if v_kept.size else cfg.speed_gate_m_s
+    dx_target, lam_min = spatial_step(v_slow, f_hi)
     steps = [f"orientation: {orient.direction}/{orient.orientation}, leading wheelset {orient.leading}, vehicle "
              f"L on rail {orient.rail_of_side['L']}",
              f"chainage from the odometer: {len(track.resets)} balise reset(s) corrected, "
              f"{len(track.untrusted)} stretch(es) not trusted"]
-    t_run = run.t
     wb_guess = cfg.wheelbase_m or 2.5
     # ---- inversion per wheelset and model
     t0 = time.perf_counter()
@@ -398,20 +403,26 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
         # one edge per wheelset: its models then share their valid stretches (and one time -> space interpolation)
         edge_w = max((tr.edge_s for *_, trs in plans for tr in trs), default=0.0)
         plans_by_w[w], edges[w] = plans, edge_w
+    kinds_of = {w: {kind for kind, *_ in plans} for w, plans in plans_by_w.items()}
+    coupling = cfg.bogie_coupling and len(plans_by_w) == 2
+    for w, plans in plans_by_w.items():
         for kind, sub, classes, transfers in plans:
-            idx = sub["row"].to_numpy(int)
-            valid = ~run.mask.masked[idx].any(axis=0)
-            ti = invert(run.acceleration[idx], run.t0, fs, valid, transfers, [c[2] for c in classes], edge_s=edge_w)
-            if ti.valid_time <= 0:
-                skipped.append(f"wheelset {w}, {kind}: no valid stretch long enough after quality control")
-                continue
-            tis[(w, kind)] = ti
             conds = []
             for (t, th, _), tr in zip(classes, transfers):
                 conds.append(condition_by_band(tr).assign(trackform=t, theta_L_deg=math.degrees(th[0]),
                                                           theta_R_deg=math.degrees(th[1])))
             conditioning[(w, kind)] = pd.concat(conds, ignore_index=True)
-    if not tis:
+            if coupling and cfg.wheelbase_m is not None and all(kind in k for k in kinds_of.values()):
+                continue  # a given wheelset and a coupled pair: only the coupled inversion below is needed
+            idx = sub["row"].to_numpy(int)
+            valid = ~run.mask.masked[idx].any(axis=0)
+            ti = invert(run.acceleration[idx], run.t0, fs, valid, transfers, [c[2] for c in classes],
+                        edge_s=edges[w])
+            if ti.valid_time <= 0:
+                skipped.append(f"wheelset {w}, {kind}: no valid stretch long enough after quality control")
+                continue
+            tis[(w, kind)] = ti
+    if not tis and not (coupling and cfg.wheelbase_m is not None):
         raise NoValidDataError(f"{run.source}: nothing could be estimated ({'; '.join(skipped) or 'every sample masked'};"
                                f" masked share {100 * run.masked_share['run']:.0f} %)")
     timings["inversion"] = time.perf_counter() - t0
@@ -434,27 +445,42 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
     steps.append(f"wheelbase {wb:.3f} m ({wb_src})")
     timings["wheelbase"] = time.perf_counter() - t0
     # ---- the rail couples the bogie's two wheelsets: each inversion again with the other's contact forces
-    if cfg.bogie_coupling and len(plans_by_w) == 2:
+    if coupling:
         t0 = time.perf_counter()
         coupled = []
         for w, wo in ((1, 2), (2, 1)):
             other = {kind: sub for kind, sub, _, _ in plans_by_w.get(wo, [])}
             for kind, sub, classes, transfers in plans_by_w.get(w, []):
-                if (w, kind) not in tis or (wo, kind) not in tis:
-                    continue
-                sub_o = other[kind]
-                trs_o = [fm.transfer(kind, sub_o.drop(columns="row"), fs, t, th) for t, th, _ in classes]
-                cps = [fm.coupling(tr, tro, t, wb) for (t, _, _), tr, tro in zip(classes, transfers, trs_o)]
-                idx, idx_o = sub["row"].to_numpy(int), sub_o["row"].to_numpy(int)
-                ti = invert(run.acceleration[idx], run.t0, fs, ~run.mask.masked[idx].any(axis=0), transfers,
-                            [c[2] for c in classes], edge_s=max(edges.values()),
-                            coupled=(run.acceleration[idx_o], ~run.mask.masked[idx_o].any(axis=0), trs_o, cps))
-                if ti.valid_time > 0:
-                    tis[(w, kind)] = ti
-                    coupled.append(f"{w}/{kind}")
+                idx = sub["row"].to_numpy(int)
+                valid = ~run.mask.masked[idx].any(axis=0)
+                deferred = cfg.wheelbase_m is not None and kind in other
+                if kind in other and ((w, kind) in tis and (wo, kind) in tis or deferred):
+                    sub_o = other[kind]
+                    trs_o = [fm.transfer(kind, sub_o.drop(columns="row"), fs, t, th) for t, th, _ in classes]
+                    cps = [fm.coupling(tr, tro, t, wb) for (t, _, _), tr, tro in zip(classes, transfers, trs_o)]
+                    idx_o = sub_o["row"].to_numpy(int)
+                    ti = invert(run.acceleration[idx], run.t0, fs, valid, transfers, [c[2] for c in classes],
+                                edge_s=max(edges.values()),
+                                coupled=(run.acceleration[idx_o], ~run.mask.masked[idx_o].any(axis=0), trs_o, cps))
+                    if ti.valid_time > 0:
+                        tis[(w, kind)] = ti
+                        coupled.append(f"{w}/{kind}")
+                        continue
+                if deferred:
+                    # no stretch valid on both wheelsets: this wheelset alone, as without the coupling
+                    ti = invert(run.acceleration[idx], run.t0, fs, valid, transfers, [c[2] for c in classes],
+                                edge_s=edges[w])
+                    if ti.valid_time > 0:
+                        tis[(w, kind)] = ti
+                    else:
+                        skipped.append(f"wheelset {w}, {kind}: no valid stretch long enough after quality control")
         steps.append(f"rail coupling of the two wheelsets {wb:.3f} m apart (Timoshenko rail transfer receptance) "
                      f"added for {', '.join(coupled) or 'none'}")
         timings["coupling"] = time.perf_counter() - t0
+        if not tis:
+            why = "; ".join(skipped) or "every sample masked"
+            raise NoValidDataError(f"{run.source}: nothing could be estimated ({why}; masked share "
+                                   f"{100 * run.masked_share['run']:.0f} %)")
     # ---- space, comb, indexes per wheelset
     t0 = time.perf_counter()
     profiles: dict[tuple[int, str], ProfileEstimate] = {}
@@ -485,12 +511,13 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
         v = np.where(np.isfinite(tx), v, np.nan)
         resolved = np.stack([(v <= b[0] * 1e-3 * f_hi) & (v >= b[1] * 1e-3 * f_lo) for b in bands])
         kinds = [k for k in cfg.models if (w, k) in tis]
-        sampled = dict(zip(kinds, sample_many([tis[(w, k)] for k in kinds], tx)))
-        for kind in kinds:
-            ti = tis[(w, kind)]
-            irr_sides = sampled[kind]  # rows: vehicle sides of ti.sides
+        sampled = sample_many([tis[(w, k)] for k in kinds], tx)
+        # one comb for every model of the wheelset (they share their mask, hence the comb's weights)
+        rail_parts = np.split(comb(np.concatenate(sampled), n_rev, cfg.comb_revolutions)[0],
+                              np.cumsum([len(s) for s in sampled])[:-1])
+        for kind, irr_sides, rail_part in zip(kinds, sampled, rail_parts):
+            ti = tis[(w, kind)]  # rows of irr_sides: vehicle sides of ti.sides
             rails = tuple(orient.rail_of_side[s] for s in ti.sides)
-            rail_part, _ = comb(irr_sides, n_rev, cfg.comb_revolutions)
             wheel = wheel_roughness(irr_sides, n_rev, ti.sides, fit.circumference_m)
             # one spectrum of the rail part serves the contact-filter correction and every EN band
             bad = ~np.isfinite(rail_part)
