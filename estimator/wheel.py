@@ -156,6 +156,90 @@ def _triangle(X: np.ndarray, R: int) -> np.ndarray:
     return d[:, R + 1:R + 1 + n] - d[:, :n]
 
 
+def _synchronous_average_numpy(X: np.ndarray, R: int, min_weight: float) -> np.ndarray:
+    """Triangular-weighted average of the same angle over ``±R`` neighbouring revolutions, the revolution itself
+    left out, NaN-aware (``X``: (rows, n_rev, N)); NaN where the weights of the valid neighbours sum to no more
+    than ``min_weight``."""
+    valid = np.isfinite(X)
+    Xz = np.where(valid, X, 0.0)
+    num = _triangle(Xz, R) - (R + 1) * Xz
+    if valid.shape[0] > 1 and (valid == valid[:1]).all():
+        valid = valid[:1]  # the usual case (sides and models of one wheelset share their mask): one weight sum
+    den = _triangle(valid.astype(float), R) - (R + 1) * valid
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(den > min_weight, num / den, np.nan)
+
+
+def _synchronous_average_loop(X, R, min_weight):
+    """:func:`_synchronous_average_numpy` as one pass along the revolutions with running sums (compiled):
+
+    ``T(r) = Σ_{|m|≤R} (R+1−|m|) x[r+m]`` obeys ``T(r+1) = T(r) + A(r) − B(r)`` with
+    ``A(r) = Σ_{j=r+1}^{r+R+1} x[j]`` and ``B(r) = Σ_{j=r−R}^{r} x[j]`` — no cumulative sums of the whole
+    array and no temporaries the size of the profile.
+    """
+    rows, n_rev, N = X.shape
+    out = np.empty((rows, n_rev, N))
+    T = np.zeros(N)
+    A = np.zeros(N)
+    B = np.zeros(N)
+    Tw = np.zeros(N)
+    Aw = np.zeros(N)
+    Bw = np.zeros(N)
+    for i in range(rows):
+        for k in range(N):
+            T[k] = A[k] = B[k] = Tw[k] = Aw[k] = Bw[k] = 0.0
+        # r = 0: T over m = 0..R, A over 1..R+1, B over [0]
+        for j in range(min(R + 2, n_rev)):
+            for k in range(N):
+                x = X[i, j, k]
+                if x == x:  # finite (NaN != NaN)
+                    if j <= R:
+                        T[k] += (R + 1 - j) * x
+                        Tw[k] += R + 1 - j
+                    if j >= 1:
+                        A[k] += x
+                        Aw[k] += 1.0
+                    if j == 0:
+                        B[k] += x
+                        Bw[k] += 1.0
+        for r in range(n_rev):
+            for k in range(N):
+                x = X[i, r, k]
+                ok = x == x
+                num = T[k] - (R + 1) * x if ok else T[k]
+                den = Tw[k] - (R + 1) if ok else Tw[k]
+                out[i, r, k] = num / den if den > min_weight else np.nan
+                T[k] += A[k] - B[k]
+                Tw[k] += Aw[k] - Bw[k]
+            if r + 1 < n_rev:
+                for k in range(N):
+                    x1 = X[i, r + 1, k]
+                    if x1 == x1:
+                        A[k] -= x1
+                        Aw[k] -= 1.0
+                        B[k] += x1
+                        Bw[k] += 1.0
+                    if r + R + 2 < n_rev:
+                        x2 = X[i, r + R + 2, k]
+                        if x2 == x2:
+                            A[k] += x2
+                            Aw[k] += 1.0
+                    if r - R >= 0:
+                        x0 = X[i, r - R, k]
+                        if x0 == x0:
+                            B[k] -= x0
+                            Bw[k] -= 1.0
+    return out
+
+
+try:  # one pass instead of eight cumulative sums over the profile (numba is a dependency of the virtual line too)
+    from numba import njit
+
+    _synchronous_average = njit(cache=True, nogil=True)(_synchronous_average_loop)
+except ImportError:  # pragma: no cover - pure numpy fallback
+    _synchronous_average = _synchronous_average_numpy
+
+
 def _by_revolution(x: np.ndarray, n_per_rev: int) -> tuple[np.ndarray, int]:
     m = x.shape[-1]
     n_rev = -(-m // n_per_rev)
@@ -183,15 +267,8 @@ def comb(profile: np.ndarray, n_per_rev: int, revolutions: int) -> tuple[np.ndar
     """
     p = np.atleast_2d(profile)
     X, m = _by_revolution(p, n_per_rev)  # (n_sides, n_rev, N)
-    valid = np.isfinite(X)
-    Xz = np.where(valid, X, 0.0)
     R = int(revolutions)
-    num = _triangle(Xz, R) - (R + 1) * Xz
-    if valid.shape[0] > 1 and (valid == valid[:1]).all():
-        valid = valid[:1]  # the usual case (sides and models of one wheelset share their mask): one weight sum
-    den = _triangle(valid.astype(float), R) - (R + 1) * valid
-    with np.errstate(invalid="ignore", divide="ignore"):
-        per = np.where(den > 0.05 * R * (R + 1), num / den, np.nan)
+    per = _synchronous_average(np.ascontiguousarray(X, dtype=float), R, 0.05 * R * (R + 1))
     per = per.reshape(p.shape[0], -1)[:, :m]
     rail = p - np.where(np.isfinite(per), per, 0.0)
     return rail, per

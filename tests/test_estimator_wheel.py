@@ -42,6 +42,33 @@ def test_comb_removes_the_periodic_part_and_keeps_the_rail():
     assert comb_response(np.array([1.0, 12.0, 0.5, 12.5]), 32) == pytest.approx([0, 0, 1.03, 1.03], abs=0.01)
 
 
+def test_compiled_synchronous_average_equals_the_direct_sum():
+    """The one-pass running-sum comb equals the triangular weighted sum written out term by term, gaps included."""
+    from estimator.wheel import _synchronous_average
+
+    rng = np.random.default_rng(7)
+    R, rows, n_rev, N = 3, 2, 23, 5
+    X = rng.standard_normal((rows, n_rev, N))
+    X[:, 4:6, :] = np.nan
+    X[1, :, 2] = np.where(rng.random(n_rev) < 0.4, np.nan, X[1, :, 2])
+    X[0, :, 4] = np.nan  # an angle with no valid revolution at all
+    got = _synchronous_average(X, R, 0.05 * R * (R + 1))
+    want = np.full_like(X, np.nan)
+    for i in range(rows):
+        for r in range(n_rev):
+            for k in range(N):
+                num = den = 0.0
+                for m in range(-R, R + 1):
+                    if m == 0 or not 0 <= r + m < n_rev or not np.isfinite(X[i, r + m, k]):
+                        continue
+                    num += (R + 1 - abs(m)) * X[i, r + m, k]
+                    den += R + 1 - abs(m)
+                if den > 0.05 * R * (R + 1):
+                    want[i, r, k] = num / den
+    assert np.array_equal(np.isnan(got), np.isnan(want))
+    np.testing.assert_allclose(got[np.isfinite(got)], want[np.isfinite(want)], rtol=0, atol=1e-12)
+
+
 def test_circumference_and_polygon_order_from_a_wheel_on_random_rail():
     C_true, N_nom = 2.5717, 1024
     dx = 2.5e-3
