@@ -11,6 +11,7 @@ __all__ = [
     "OdometryError",
     "ConfigurationError",
     "NoValidDataError",
+    "WheelbaseError",
 ]
 
 
@@ -40,6 +41,11 @@ class OdometryError(EstimatorError):
 
 class ConfigurationError(EstimatorError):
     """An estimator option outside its range (names the option, the range and the value)."""
+
+
+class WheelbaseError(ConfigurationError):
+    """A bogie's wheelbase could not be measured from the run and was not given (names the run and the
+    lead/trail correlation); a batch may retry the run with the wheelbase measured on the bogie's other runs."""
 
 
 class NoValidDataError(EstimatorError):

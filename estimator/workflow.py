@@ -48,7 +48,7 @@ from estimator.config import EstimatorConfig
 from estimator.contact_angles import CurvingModel, contact_angles
 from estimator.contact_filter import contact_gain
 from estimator.corrugation import MIN_PROMINENCE_DB, classify, model_resonances, spectral_peak
-from estimator.errors import ChannelError, ConfigurationError, NoValidDataError
+from estimator.errors import ChannelError, NoValidDataError, WheelbaseError
 from estimator.inversion import (TimeIrregularity, _log_smooth_rms, condition_by_band, invert, model_channels,
                                  rail_coupling, sample_many, wheelset_transfer)
 from estimator.io import LineDescription, read_line, read_run
@@ -436,10 +436,10 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
         est, contrast = _estimate_wheelbase(fm, tis, track, orient, lam_min)
         if est is None or contrast < WHEELBASE_MIN_CORRELATION:
             if len(run.wheelsets) > 1:
-                raise ConfigurationError(
+                raise WheelbaseError(
                     f"{run.source}: the wheelbase could not be measured from the data (lead/trail correlation "
                     f"{contrast:.2f} < {WHEELBASE_MIN_CORRELATION}); give it (wheelbase_m / --wheelbase)")
-            raise ConfigurationError(f"{run.source}: one instrumented wheelset: give the wheelbase (wheelbase_m / "
+            raise WheelbaseError(f"{run.source}: one instrumented wheelset: give the wheelbase (wheelbase_m / "
                                      "--wheelbase) to place it along chainage")
         wb, wb_src = est, f"measured (lead/trail cross-correlation {contrast:.2f})"
     steps.append(f"wheelbase {wb:.3f} m ({wb_src})")

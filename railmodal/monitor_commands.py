@@ -56,6 +56,19 @@ def _store_folder(option: str):
     return parse
 
 
+def _iso_date(option: str):
+    def parse(text: str) -> str:
+        import datetime as _dt
+
+        try:
+            return _dt.date.fromisoformat(text).isoformat()
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{option} must be a date YYYY-MM-DD, got {text!r}") from None
+
+    parse.__name__ = "date"
+    return parse
+
+
 def _spec(args, model) -> object:
     from estimator import EstimatorConfig
     from estimator.monitoring import IngestSpec, MonitoringConfig
@@ -125,7 +138,7 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     store = MonitoringStore(args.store)
     res = monitor(store, line=args.line_id, section_range=tuple(args.section) if args.section else None,
-                  model_hash=args.model_version, line_file=args.line)
+                  model_hash=args.model_version, line_file=args.line, as_of=args.as_of)
     with staged_output(args.out) as tmp:
         files = write_monitoring(res, tmp)
     dates = sorted(res.day_windows["date"].unique())
@@ -141,6 +154,10 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
         print(f"  grinding between {g['date_before']} and {g['date_after']} on {g['from_m']:.0f}-{g['to_m']:.0f} m")
     if len(res.flags):
         print(f"  {len(res.flags)} consistency finding(s): see consistency_flags.csv")
+    for _, o in res.outliers.iterrows():
+        print(f"  left out of the {o['date']} average: run {o['run_id']} wheelset {o['wheelset']} rail {o['rail']} "
+              f"{o['band_mm']} mm on {o['section']} ({o['deviation_db']:+.1f} dB from the day's others, limit "
+              f"{o['limit_db']:.1f} dB)")
     print(f"report: {Path(args.out) / files['report'].name} ({time.perf_counter() - t0:.1f} s)")
     return 0
 
@@ -250,6 +267,8 @@ def add_monitor_commands(sub) -> None:
                      help="line.json for the sections' extents (trends per section)")
     mon.add_argument("--line-id", default=None, help="line in the store (default: the only one)")
     mon.add_argument("--model-version", default=None, help="model version (hash prefix; default: the last processed)")
+    mon.add_argument("--as-of", default=None, type=_iso_date("--as-of"),
+                     help="YYYY-MM-DD: the line as known on that day (survey days up to it: the forecast made then)")
     mon.set_defaults(func=_cmd_monitor)
 
     cmp_ = fsub.add_parser("compare-reference", help="trolley records against the train's day averages per band "

@@ -33,7 +33,9 @@ def batch(tmp_path_factory):
     bad = d / "broken.mf4"
     bad.write_bytes(b"MDF     4.10    " + bytes(200))
     spec = IngestSpec(str(d / "hybrid_model.npz"), str(d / "sensors.csv"), estimator=EstimatorConfig(wheelbase_m=2.2),
-                      monitoring=MonitoringConfig(n_perturbed=1, placement_shifts_mm=(30.0,), placement_axes=("y",)))
+                      monitoring=MonitoringConfig(n_perturbed=1, placement_shifts_mm=(30.0,), placement_axes=("y",),
+                                                   contact_load_range=0.0, contact_head_radius_m=(),
+                                                   track_stiffness_factor=1.0, track_discrete_supports=False))
     return d, runs + [bad], spec
 
 

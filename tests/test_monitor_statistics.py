@@ -206,3 +206,134 @@ def test_a_flat_section_gets_no_forecast():
     g = growth(ds, None, None, CFG)
     f = forecast(g, {"30-100": 10.0}, ds).iloc[0]
     assert f["status"] == "not growing significantly" and f["crossing_date"] == ""
+
+
+# ----------------------------------------------------------------------------- outliers, systematic forecast
+def test_an_estimate_far_from_its_days_others_is_left_out_of_the_day_average():
+    """Six runs × two wheelsets of one section at 20 µm (±0.2 dB), one wheelset at +6 dB: it alone is an outlier
+    (deviation 6 dB beyond max(2 dB, 3 × the others' robust scatter)); the day level is the others' energy mean."""
+    from estimator.monitoring.outliers import outlying_estimates, without_outliers
+    from estimator.monitoring.workflow import day_tables
+
+    rng = np.random.default_rng(3)
+    w = []
+    for r in range(6):
+        for ws in (1, 2):
+            pk = 20.0 * 10 ** (0.2 * rng.standard_normal() / 20)
+            if (r, ws) == (2, 2):
+                pk = 20.0 * 10 ** (6.0 / 20)
+            w += [rows(f"r{r}", pk * (1 + 0.01 * k), window=float(k), wheelset=ws) for k in range(5)]
+    w = pd.DataFrame(w)
+    out = outlying_estimates(w, CFG)
+    assert len(out) == 1 and (out["run_id"].iloc[0], out["wheelset"].iloc[0]) == ("r2", 2)
+    assert out["deviation_db"].iloc[0] == pytest.approx(6.0, abs=0.5) and out["limit_db"].iloc[0] == 2.0
+    kept = without_outliers(w, out)
+    assert len(kept) == len(w) - 5 and not ((kept["run_id"] == "r2") & (kept["wheelset"] == 2)).any()
+    dw, _ = day_tables(w, pd.DataFrame(), pd.DataFrame(), CFG)
+    ref = day_average(kept)
+    assert np.allclose(dw.sort_values("window_m")["level_db"], ref.sort_values("window_m")["level_db"], atol=1e-12)
+    # a +1 dB estimate is within the day's spread; and three others are too few to judge one
+    w2 = w.assign(pk_pk_um=np.where((w["run_id"] == "r2") & (w["wheelset"] == 2), w["pk_pk_um"] / 10 ** 0.25, w["pk_pk_um"]))
+    assert outlying_estimates(w2, CFG).empty
+    assert outlying_estimates(w[(w["run_id"] == "r1") | ((w["run_id"] == "r2") & (w["wheelset"] == 2))], CFG).empty
+
+
+def test_the_forecast_interval_holds_the_systematic_level_uncertainty():
+    """pk = 10 + 0.5 t, threshold 40 µm: t* = 60 d; a systematic interval of −1/+2 dB scales the amplitude by
+    k ∈ [10^(−1/20), 10^(2/20)], so the crossing can be as early as (40/k_hi − 10)/0.5 and as late as
+    (40/k_lo − 10)/0.5 (closed form; the statistical part is negligible here)."""
+    cov = np.diag([1e-8, 1e-12])
+    g = pd.DataFrame([{"section": "s", "rail": "R", "band_mm": "30-100", "last_pk_pk_um": 30.0, "since": "",
+                       "intercept_um": 10.0, "slope_um_per_day": 0.5, "slope_se_um_per_day": 1e-6, "t0_day": 19800.0,
+                       "cov": cov, "growth_um_per_month": 15.2, "systematic_lo_db": -1.0, "systematic_hi_db": 2.0}])
+    f = forecast(g, {"30-100": 40.0}).iloc[0]
+    assert f["crossing_day"] == pytest.approx(19860.0, abs=1e-6) and f["interval"] == "statistical and systematic"
+    early = 19800.0 + (40.0 / 10 ** (2 / 20) - 10.0) / 0.5
+    late = 19800.0 + (40.0 / 10 ** (-1 / 20) - 10.0) / 0.5
+    assert f["crossing_lo"] == pd.Timestamp("1970-01-01").date().fromordinal(
+        pd.Timestamp("1970-01-01").date().toordinal() + int(round(early))).isoformat()
+    assert f["crossing_hi"] == pd.Timestamp("1970-01-01").date().fromordinal(
+        pd.Timestamp("1970-01-01").date().toordinal() + int(round(late))).isoformat()
+    f0 = forecast(g.drop(columns=["systematic_lo_db", "systematic_hi_db"]), {"30-100": 40.0}).iloc[0]
+    assert f0["interval"] == "statistical only" and f0["crossing_lo"] == f0["crossing_hi"] == f0["crossing_date"]
+
+
+def test_a_day_with_one_run_takes_the_sections_pooled_scatter():
+    """Days with several runs give se = scatter/√n_eff; a single-run day (no scatter of its own) is weighted with
+    the median scatter of the others over √1 — the weighted fit equals the closed-form WLS with those errors."""
+    from estimator.monitoring.trends import _wls
+
+    dates = ["2024-04-01", "2024-04-11", "2024-04-21", "2024-05-01"]
+    pk = np.array([10.0, 14.5, 20.5, 24.0])
+    ds = pd.DataFrame({"date": dates, "section": "s", "rail": "R", "band_mm": "30-100", "pk_pk_um": pk,
+                       "scatter_db": [0.6, np.nan, 0.4, 0.5], "n_eff": [4.0, 1.0, 4.0, 4.0],
+                       "se_db": [0.3, np.nan, 0.2, 0.25]})
+    g = growth(ds, None, None, CFG).iloc[0]
+    se = np.array([0.3, 0.5, 0.2, 0.25])  # the single-run day: median(0.6, 0.4, 0.5) / √1
+    a, b, cov = _wls(np.array([0.0, 10.0, 20.0, 30.0]), pk, pk * math.log(10) / 20 * se)
+    assert g["slope_um_per_day"] == pytest.approx(b, rel=1e-12)
+    assert g["slope_se_um_per_day"] == pytest.approx(math.sqrt(cov[1, 1]), rel=1e-12)
+
+
+def test_contact_and_track_variants_span_the_stated_ranges():
+    """Wheel load ±25 %: Hertz semi-axis and stiffness scale as (1 ± 0.25)^(1/3) (a ∝ (P R)^(1/3), k_H ∝
+    P^(1/3)); the track variants: discrete supports, pad and ballast stiffness ×2 and ÷2 on every trackform."""
+    from test_estimator_synthetic import control_model, sensor_table
+
+    from estimator.monitoring.variants import contact_variants, track_variants
+    from estimator.workflow import prepare
+
+    fm = prepare(control_model(), sensor_table())
+    cv = contact_variants(fm, CFG)
+    assert [v.label for v in cv] == ["wheel load -25 %", "wheel load +25 %", "rail head radius 200 mm",
+                                     "rail head radius 500 mm"]
+    for v, f in zip(cv[:2], (0.75, 1.25)):
+        assert v.field_model.semi_axis_m / fm.semi_axis_m == pytest.approx(f ** (1 / 3), rel=1e-9)
+        assert v.field_model.contact_stiffness / fm.contact_stiffness == pytest.approx(f ** (1 / 3), rel=1e-9)
+        assert v.field_model.cache is not fm.cache and v.source == "contact"
+    # a rail head curved more tightly across narrows the ellipse and lengthens it along the rail (Hertz)
+    assert cv[3].field_model.semi_axis_m < fm.semi_axis_m < cv[2].field_model.semi_axis_m
+    tv = track_variants(fm, CFG)
+    assert [v.label for v in tv] == ["discrete supports (midspan)", "pad stiffness x2", "pad stiffness x0.5",
+                                     "ballast stiffness x2", "ballast stiffness x0.5"]
+    assert tv[0].field_model.config.trackform_supports == "discrete"
+    base = fm.default_trackform()
+    assert tv[1].field_model.default_trackform().pad_stiffness_z == pytest.approx(2 * base.pad_stiffness_z)
+    assert tv[4].field_model.default_trackform().subplate_stiffness_y == pytest.approx(0.5 * base.subplate_stiffness_y)
+    assert tv[4].field_model.default_trackform().pad_stiffness_z == base.pad_stiffness_z
+    none = CFG.replace(contact_load_range=0.0, contact_head_radius_m=(), track_stiffness_factor=1.0,
+                       track_discrete_supports=False)
+    assert contact_variants(fm, none) == [] and track_variants(fm, none) == []
+
+
+def test_the_noise_floor_is_subtracted_in_energy_and_windows_under_it_are_upper_bounds():
+    """Levels 20, 15 and 11 dB above a 0 dB floor and one at 2 dB: kept, kept (Δ ≥ 10), energy-subtracted
+    (10 lg(10^1.1 − 1)) and below floor (upper bound, lower −inf); coverage counts the latter as covered when the
+    truth is under its upper bound."""
+    from estimator.monitoring.floor import day_floor, noise_run, with_floor
+
+    L = np.array([20.0, 15.0, 5.0, 2.0])
+    day = pd.DataFrame({"date": "2024-03-04", "rail": "L", "band_mm": "30-100", "window_m": np.arange(4.0), "level_db": L,
+                        "pk_pk_um": 10 ** (L / 20), "ci_lo_db": L - 1.0, "ci_hi_db": L + 1.0})
+    var = pd.DataFrame([rows(r, 1.0, window=float(k)) for r in ("a", "b") for k in range(4)]).assign(
+        source="floor", variant="noise")
+    fl = day_floor(var)
+    assert np.allclose(fl["floor_pk_um"], 1.0)
+    out = with_floor(day, fl)
+    assert list(out["floor_status"]) == ["above floor", "above floor", "floor subtracted", "below floor"]
+    assert out["level_db"].iloc[2] == pytest.approx(10 * np.log10(10 ** 0.5 - 1), abs=1e-12)
+    assert out["ci_hi_db"].iloc[2] == pytest.approx(out["level_db"].iloc[2] + 1.0, abs=1e-12)
+    assert out["ci_lo_db"].iloc[3] == -np.inf and out["ci_hi_db"].iloc[3] == 3.0
+    truth = pd.DataFrame({"date": "2024-03-04", "rail": "L", "band_mm": "30-100", "window_m": [3.0], "level_db": [-10.0]})
+    assert coverage(out, truth)["coverage"].iloc[0] == 1.0
+    assert (with_floor(day, pd.DataFrame())["floor_status"] == "no floor").all()
+
+    class R:  # the run's shape, dropouts and history are what the floor estimate keeps
+        acceleration = np.array([[1.0, np.nan, 2.0, 3.0] * 2500])
+
+        def with_step(self, step, **changes):
+            return changes["acceleration"], step
+
+    acc, step = noise_run(R(), 0.03, seed=1)
+    assert np.isnan(acc[0, 1::4]).all() and np.std(acc[np.isfinite(acc)]) == pytest.approx(0.03, rel=0.05)
+    assert "0.03 m/s^2" in step

@@ -18,7 +18,8 @@ from estimator import EstimatorConfig
 from estimator.monitoring.averaging import energy_mean_db
 from estimator.monitoring import IngestSpec, MonitoringConfig, MonitoringStore, ingest, monitor, reprocess
 
-MON = MonitoringConfig(n_perturbed=2, placement_shifts_mm=(30.0,), placement_axes=("y",), uncertainty_runs=1)
+MON = MonitoringConfig(n_perturbed=2, placement_shifts_mm=(30.0,), placement_axes=("y",), uncertainty_runs=1,
+                       contact_head_radius_m=(), track_discrete_supports=False, sensor_noise_rms_m_s2=0.03)
 
 
 @pytest.fixture(scope="module")
@@ -65,7 +66,10 @@ def test_runs_are_aligned_averaged_and_bad_ones_reported_without_stopping_the_ba
     assert (w["model_hash"] == res.model_hash).all()
     assert set(st.read("days")["date"]) == {"2026-01-05", "2026-01-14"}
     v = st.read("variants")
-    assert set(v["source"]) == {"model", "placement"} and v["run_id"].nunique() == 2  # first run of each day
+    assert set(v["source"]) == {"model", "placement", "contact", "track", "floor"} and v["run_id"].nunique() == 2
+    # one model per source and range end: 2 perturbed, 2 shifts, wheel load -/+, pad and ballast stiffness x/÷ 2
+    assert v.groupby("source")["variant"].nunique().to_dict() == {"model": 2, "placement": 2, "contact": 2, "track": 4,
+                                                                   "floor": 1}
 
 
 def test_the_synthetic_corrugation_is_found_on_the_right_rail(ingested):
@@ -97,6 +101,10 @@ def test_monitor_reads_a_line_back(ingested):
     assert m.model_hash == res.model_hash and set(m.day_windows["date"]) == {"2026-01-05", "2026-01-14"}
     assert {"ci_lo_db", "ci_hi_db", "model_lo_db", "placement_hi_db"} <= set(m.day_windows.columns)
     assert (m.day_windows["ci_lo_db"] <= m.day_windows["level_db"] + 1e-9).all()
+    # the sensor noise's floor (0.03 m/s^2 through the same inversion) lies far under the 40 µm sinusoids
+    mid = m.day_windows[m.day_windows["window_m"].between(150, 249) & (m.day_windows["rail"] == "L")
+                        & (m.day_windows["band_mm"] == "30-100")]
+    assert len(mid) and (mid["floor_status"] == "above floor").all() and (mid["above_floor_db"] > 20).all()
     assert len(m.growth) and len(m.forecast)
     sub = monitor(st, section_range=(100.0, 200.0))
     assert sub.day_windows["window_m"].between(99.0, 200.0).all()

@@ -9,7 +9,14 @@ parameters and sensor placement; the value is in many runs:
 * :mod:`~estimator.monitoring.averaging` — energy averages per day and rail,
   weighted by run quality;
 * :mod:`~estimator.monitoring.variants` and :mod:`~estimator.monitoring.confidence` —
-  intervals from run-to-run scatter, perturbed models and shifted sensors;
+  intervals from run-to-run scatter, perturbed models, shifted sensors, the
+  contact's load and geometry and the track's supports;
+* :mod:`~estimator.monitoring.floor` — the estimate's noise floor (sensor
+  noise through the same inversion), subtracted or reported as a bound;
+* :mod:`~estimator.monitoring.outliers` — estimates far from their day's
+  others left out of the day averages;
+* :mod:`~estimator.monitoring.wheelbase` — a bogie's wheelbase shared between
+  its runs;
 * :mod:`~estimator.monitoring.consistency` — leading vs trailing, the two
   directions, left–right cross-talk;
 * :mod:`~estimator.monitoring.store` — the partitioned Parquet store;

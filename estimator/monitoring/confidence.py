@@ -17,9 +17,18 @@ the nominal value (the thesis's 95 % band of the 25 models' roughness).
 **Accelerometer placement** (systematic): the same with the shifted-sensor
 variants (±10, ±30, ±50 mm).
 
+**Wheel–rail contact** and **track** (systematic): the same with the
+contact variants (wheel load between tare and crush load, rail-head radius
+range) and the track variants (discrete supports, pad and ballast stiffness
+range) of :mod:`estimator.monitoring.variants`. The estimator's contact and
+track are idealisations of one vehicle load and one continuously supported
+track; these variants span what the real ones may be.
+
 **Combined.** The sources are independent, so their half-widths add in
-quadrature on each side: ``lower = sqrt(h_s² + a_m² + a_p²)`` with ``a_k =
-max(0, −q_lo,k)`` and likewise above with ``max(0, q_hi,k)``; a source that
+quadrature on each side (they are asymmetric in dB: each side is combined on
+its own): ``lower = sqrt(h_s² + Σ_k a_k²)`` with ``a_k = max(0, −q_lo,k)``
+over the systematic sources ``k`` and likewise above with ``max(0, q_hi,k)``;
+nothing is scaled to make a coverage figure. A source that
 was not evaluated contributes nothing (and says so: its columns are NaN). The
 interval is ``[L − lower, L + upper]`` around the day's level ``L``.
 """
@@ -32,9 +41,9 @@ from scipy import stats
 
 from estimator.monitoring.averaging import MIN_VALID_SHARE, level_db
 
-__all__ = ["SOURCES", "variant_deltas", "variant_spread", "with_intervals", "coverage"]
+__all__ = ["SOURCES", "variant_deltas", "variant_spread", "with_intervals", "coverage", "coverage_table"]
 
-SOURCES = ("model", "placement")
+SOURCES = ("model", "placement", "contact", "track")
 
 
 def variant_deltas(variants: pd.DataFrame, nominal: pd.DataFrame, unit: str = "window_m") -> pd.DataFrame:
@@ -104,13 +113,47 @@ def coverage(intervals: pd.DataFrame, truth: pd.DataFrame, *, unit: str = "windo
              columns: tuple[str, str] = ("ci_lo_db", "ci_hi_db"), by: tuple[str, ...] = ("date",)) -> pd.DataFrame:
     """Share of units whose truth level lies inside the interval, per band (and ``by``).
 
-    ``truth`` holds ``rail, band_mm, <unit>, level_db`` (and the ``by`` columns it has).
+    ``truth`` holds ``rail, band_mm, <unit>, level_db`` (and the ``by`` columns it has). A window below the
+    estimate's noise floor (:mod:`~estimator.monitoring.floor`: lower bound −inf, the estimate its upper bound)
+    counts as covered when the truth is at most its upper bound.
     """
     keys = [k for k in by if k in truth.columns] + ["rail", "band_mm", unit]
     j = intervals.merge(truth[keys + ["level_db"]].rename(columns={"level_db": "truth_db"}), on=keys, how="inner")
     lo, hi = columns
-    j = j[np.isfinite(j[lo]) & np.isfinite(j[hi]) & np.isfinite(j["truth_db"])]
+    j = j[~np.isnan(j[lo]) & np.isfinite(j[hi]) & np.isfinite(j["truth_db"])]
     j["covered"] = (j["truth_db"] >= j[lo]) & (j["truth_db"] <= j[hi])
     g = j.groupby("band_mm")
     return pd.DataFrame({"windows": g.size(), "covered": g["covered"].sum(),
                          "coverage": g["covered"].mean()}).reset_index()
+
+
+def coverage_table(intervals: pd.DataFrame, truth: pd.DataFrame, *, unit: str = "window_m",
+                   by: tuple[str, ...] = ("date",)) -> pd.DataFrame:
+    """Coverage of the truth per band by the combined interval and by each source's alone (around the level).
+
+    Returns ``band_mm, windows, covered, coverage`` and ``coverage_<source>_alone`` for the scatter and every
+    systematic source, plus ``mean_error_db`` (level − truth) and ``below``/``above`` (shares of the windows whose
+    truth lies below / above the combined interval): where the misses sit says which side lacks a source; and
+    ``below_floor``, the windows reported below the noise floor (counted as :func:`coverage` says).
+    """
+    out = coverage(intervals, truth, unit=unit, by=by).set_index("band_mm")
+    L = intervals["level_db"]
+    for src in ("scatter",) + SOURCES:
+        lo, hi = f"{src}_lo_db", f"{src}_hi_db"
+        if lo not in intervals.columns or not np.isfinite(intervals[lo]).any():
+            continue
+        t = intervals.assign(_lo=L + np.minimum(0.0, intervals[lo].fillna(0.0)),
+                             _hi=L + np.maximum(0.0, intervals[hi].fillna(0.0)))
+        out[f"coverage_{src}_alone"] = coverage(t, truth, unit=unit, columns=("_lo", "_hi"), by=by
+                                                ).set_index("band_mm")["coverage"]
+    keys = [k for k in by if k in truth.columns] + ["rail", "band_mm", unit]
+    j = intervals.merge(truth[keys + ["level_db"]].rename(columns={"level_db": "truth_db"}), on=keys, how="inner")
+    j = j[~np.isnan(j["ci_lo_db"]) & np.isfinite(j["ci_hi_db"]) & np.isfinite(j["truth_db"])]
+    if "floor_status" in j.columns:
+        out["below_floor"] = j.assign(_b=j["floor_status"] == "below floor").groupby("band_mm")["_b"].sum()
+    g = j.assign(_err=j["level_db"] - j["truth_db"], _below=j["truth_db"] < j["ci_lo_db"],
+                 _above=j["truth_db"] > j["ci_hi_db"]).groupby("band_mm")
+    out["mean_error_db"] = g["_err"].mean()
+    out["below"] = g["_below"].mean()
+    out["above"] = g["_above"].mean()
+    return out.reset_index()

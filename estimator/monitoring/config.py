@@ -41,7 +41,17 @@ class MonitoringConfig:
         §4.3.4: 25 models, ±10 %), ``perturbation_seed``, ``placement_shifts_mm``
         and ``placement_axes`` (thesis §4.3.5: ±10, ±30, ±50 mm), ``uncertainty_runs``
         (runs per day whose accelerations go through every perturbed and
-        shifted model).
+        shifted model), ``contact_load_range`` (± share of the wheel load: tare
+        to crush load), ``contact_head_radius_m`` (rail head transverse radii
+        bounding the contact geometry), ``track_stiffness_factor`` (pad and
+        ballast stiffness times and divided by it; 1: none),
+        ``track_discrete_supports`` (the discretely supported rail's
+        receptance as a variant) — the contact and track sources of
+        :mod:`estimator.monitoring.variants` (a zero range, no radius, a
+        factor 1 and no discrete supports leave a source out);
+        ``sensor_noise_rms_m_s2`` (the accelerometer chain's noise, RMS over
+        the recorded band, from its datasheet or a standstill recording;
+        ``None``: no noise floor, :mod:`estimator.monitoring.floor`).
 
     Consistency
         ``consistency_min_db``: a disagreement smaller than this is never flagged;
@@ -77,6 +87,11 @@ class MonitoringConfig:
     placement_shifts_mm: tuple[float, ...] = (10.0, 30.0, 50.0)
     placement_axes: tuple[str, ...] = ("x", "y")
     uncertainty_runs: int = 1
+    contact_load_range: float = 0.25
+    contact_head_radius_m: tuple[float, ...] = (0.2, 0.5)
+    track_stiffness_factor: float = 2.0
+    track_discrete_supports: bool = True
+    sensor_noise_rms_m_s2: float | None = None
     consistency_min_db: float = 2.0
     consistency_z: float = 3.0
     crosstalk_coherence: float = 0.8
@@ -115,6 +130,13 @@ class MonitoringConfig:
         if bad:
             raise MonitoringConfigError(f"placement_axes must be among x, y, z, got {bad}")
         _num("uncertainty_runs", self.uncertainty_runs, 0, 1000)
+        _num("contact_load_range", self.contact_load_range, 0.0, 0.9)
+        for r in self.contact_head_radius_m:
+            _num("contact_head_radius_m", r, 0.01, 10.0, unit="m")
+        _num("track_stiffness_factor", self.track_stiffness_factor, 1.0, 10.0)
+        if self.sensor_noise_rms_m_s2 is not None:
+            _num("sensor_noise_rms_m_s2", self.sensor_noise_rms_m_s2, 0.0, 1e3, lo_open=True, unit="m/s^2")
+        object.__setattr__(self, "contact_head_radius_m", tuple(float(r) for r in self.contact_head_radius_m))
         _num("consistency_min_db", self.consistency_min_db, 0.0, 60.0, unit="dB")
         _num("consistency_z", self.consistency_z, 0.5, 20.0)
         _num("crosstalk_coherence", self.crosstalk_coherence, 0.0, 1.0, lo_open=True)

@@ -35,7 +35,7 @@ import pandas as pd
 
 from estimator.config import EstimatorConfig
 from estimator.io import read_trolley
-from estimator.monitoring.alignment import AlignmentStage, FeatureProfile, align_profiles, feature_profile
+from estimator.monitoring.alignment import AlignmentStage, align_profiles, feature_profile
 from estimator.monitoring.averaging import energy_mean_db, level_db
 from estimator.monitoring.config import MonitoringConfig
 from estimator.monitoring.errors import TrolleyReferenceError

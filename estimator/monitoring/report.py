@@ -119,7 +119,7 @@ def _interval_summary(dw: pd.DataFrame) -> pd.DataFrame:
 
 def write_report(res, path, figures: dict, cfg: MonitoringConfig = MonitoringConfig()) -> Path:
     """The HTML report of a monitoring result (module docstring), figures embedded."""
-    dw, ds = res.day_windows, res.day_sections
+    dw = res.day_windows
     dates = sorted(dw["date"].unique()) if len(dw) else []
     runs = res.runs
     n_rej = int((~runs["aligned"].astype(bool)).sum()) if len(runs) else 0
@@ -185,9 +185,14 @@ def write_report(res, path, figures: dict, cfg: MonitoringConfig = MonitoringCon
     # 7 consistency
     p += [f"<h2>{SECTION_TITLES[6]}</h2>",
           "<p>Where two estimates of the same rail disagree beyond their scatter.</p>", _table(res.flags)]
+    out = getattr(res, "outliers", None)
+    if out is not None and len(out):
+        p += ["<p>Estimates left out of the day averages: a run's wheelset whose section level departs from the "
+              "day's others by more than max(2 dB, 3 × their robust scatter) (kept in the store).</p>", _table(out)]
     # 8 data
     cols = [c for c in ("date", "run_id", "direction", "masked_share", "speed_m_s", "aligned", "alignment_residual_mm",
-                        "is_reference", "rejected_reason", "uncertainty") if c in runs.columns]
+                        "wheelbase_m", "wheelbase_source", "is_reference", "rejected_reason", "uncertainty")
+            if c in runs.columns]
     p += [f"<h2>{SECTION_TITLES[7]}</h2>", _table(runs[cols].sort_values(["date", "run_id"]) if len(runs) else runs,
                                                   100)]
     # 9 versions
@@ -221,7 +226,8 @@ def write_monitoring(res, folder, cfg: MonitoringConfig = MonitoringConfig()) ->
     for name, df in (("forecast", res.forecast), ("growth", res.growth), ("grinding_events", res.grinding),
                      ("grinding_effect", res.grinding_effect), ("day_sections", res.day_sections),
                      ("day_windows", res.day_windows), ("consistency_flags", res.flags), ("runs", res.runs),
-                     ("model_versions", res.versions), ("version_changes", res.changes)):
+                     ("model_versions", res.versions), ("version_changes", res.changes),
+                     ("outliers", getattr(res, "outliers", None))):
         if df is None:
             continue
         d = df.drop(columns=[c for c in ("cov",) if c in df.columns])

@@ -8,22 +8,31 @@ line in peak-to-peak amplitude against time — corrugation amplitude grows
 about linearly with the traffic between grindings (the wear-instability
 picture behind thesis §4.3.6; the virtual line's truth grows the same way) —
 by weighted least squares, each day weighted by ``1/σ²`` with ``σ = pk ·
-ln10/20 · se_db`` (its run-to-run standard error, delta method; equal weights
-where a day has a single run). The slope's standard error comes from the
+ln10/20 · se_db`` (its run-to-run standard error, delta method). A day with a single run
+(or whose other runs were left out as outliers) has no scatter of its own:
+it takes the section's pooled run-to-run scatter (median ``scatter_db`` of
+its days with several runs) over ``√n_eff`` — the same measurement, one
+run; equal weights only when no day of the section has several runs. The
+slope's standard error comes from the
 residuals when there are more than two days (scaled by ``max(1, χ²/dof)``,
 so that a line that does not fit widens its own uncertainty), from the
 days' errors otherwise. Growth is given in µm per month
 (:data:`~estimator.monitoring.config.DAYS_PER_MONTH`).
 
-The systematic (transfer-function and placement) uncertainty scales every
-day's value by the same unknown factor; it scales the growth rate and the
-forecast's distance to the threshold alike, so it is reported beside them
-(``systematic_lo_db``/``hi_db``), not mixed into the slope's standard error.
+The systematic (transfer-function, placement, contact and track)
+uncertainty scales every day's value by the same unknown factor ``k``: it
+does not change the slope's statistics, so it is reported beside the growth
+(``systematic_lo_db``/``hi_db``, the days' mean combined systematic
+half-widths) and not mixed into the slope's standard error.
 
 **Forecast.** The crossing of the band's threshold ``T``: ``t* = (T − a)/b``
 from the fit ``pk(t) = a + b t``, with the delta-method variance
 ``(var a + t*² var b + 2 t* cov(a, b)) / b²`` and a normal ``confidence``
-interval. A section already above its threshold is reported as such (with
+interval. The systematic factor moves the crossing: the true amplitude
+``k (a + b t)`` reaches ``T`` at ``t*(k) = (T/k − a)/b``; with ``k`` at the
+ends of the systematic interval (``10^{lo/20}``, ``10^{hi/20}``) the
+forecast's interval runs from ``t*(k_hi) − z sd`` to ``t*(k_lo) + z sd``
+(``interval`` says whether it holds the systematic part). A section already above its threshold is reported as such (with
 the first day above); a section whose slope is not significantly positive
 (``b < 2 se_b``) gets no date.
 """
@@ -36,6 +45,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
+from estimator.monitoring.confidence import SOURCES
 from estimator.monitoring.config import DAYS_PER_MONTH, MonitoringConfig
 
 __all__ = ["day_number", "date_of", "growth", "forecast", "last_grinding"]
@@ -118,17 +128,26 @@ def growth(day_sections: pd.DataFrame, events: pd.DataFrame | None = None, secti
         t0 = float(t[0])
         y = seg["pk_pk_um"].to_numpy(float)
         se = seg["se_db"].to_numpy(float) if "se_db" in seg.columns else np.full(y.size, np.nan)
+        if "scatter_db" in seg.columns and "n_eff" in seg.columns and not np.all(np.isfinite(se) & (se > 0)):
+            pooled = seg["scatter_db"].to_numpy(float)
+            pooled = pooled[np.isfinite(pooled) & (pooled > 0)]
+            if pooled.size:
+                one = np.median(pooled) / np.sqrt(np.maximum(seg["n_eff"].to_numpy(float), 1.0))
+                se = np.where(np.isfinite(se) & (se > 0), se, one)
         sig = y * math.log(10) / 20 * se
         if not np.all(np.isfinite(sig) & (sig > 0)):
             sig = np.full(y.size, max(float(np.std(y)) if y.size > 2 else 1.0, 1e-3))
         a0, b0, cov = _wls(t - t0, y, sig)
         extra = {}
         for side in ("lo", "hi"):
-            parts = [seg[f"{s}_{side}_db"].to_numpy(float) for s in ("model", "placement")
-                     if f"{s}_{side}_db" in seg.columns]
+            sign = -1.0 if side == "lo" else 1.0
+            parts = [seg[f"{s}_{side}_db"].to_numpy(float) for s in SOURCES if f"{s}_{side}_db" in seg.columns]
+            parts = [p for p in parts if np.isfinite(p).any()]
             if parts:
-                v = np.sqrt(sum(np.nan_to_num(p) ** 2 for p in parts))
-                extra[f"systematic_{side}_db"] = float(np.nanmean(v)) * (-1 if side == "lo" else 1)
+                # each side on its own, as the day intervals (confidence.with_intervals): a source that only
+                # raises the level adds nothing below
+                v = np.sqrt(sum(np.nan_to_num(np.maximum(0.0, sign * p)) ** 2 for p in parts))
+                extra[f"systematic_{side}_db"] = sign * float(np.mean(v))
         rows.append({**row, "intercept_um": a0, "slope_um_per_day": b0, "slope_se_um_per_day": math.sqrt(cov[1, 1]),
                      "t0_day": t0, "cov": cov, **extra})
     out = pd.DataFrame(rows)
@@ -177,12 +196,22 @@ def forecast(growth_table: pd.DataFrame, thresholds_um: dict, day_sections: pd.D
             rows.append({**row, "status": "not growing significantly" if np.isfinite(b) else "too few days"})
             continue
         a, cov, t0 = r["intercept_um"], r["cov"], r["t0_day"]
-        ts = (T - a) / b
-        var = (cov[0, 0] + ts ** 2 * cov[1, 1] + 2 * ts * cov[0, 1]) / b ** 2
-        sd = math.sqrt(max(var, 0.0))
-        day = t0 + ts
-        rows.append({**row, "status": "forecast", "crossing_date": date_of(day), "crossing_lo": date_of(day - z * sd),
-                     "crossing_hi": date_of(day + z * sd), "crossing_day": day, "crossing_sd_days": sd})
+
+        def crossing(k: float) -> tuple[float, float]:
+            ts = (T / k - a) / b
+            var = (cov[0, 0] + ts ** 2 * cov[1, 1] + 2 * ts * cov[0, 1]) / b ** 2
+            return t0 + ts, math.sqrt(max(var, 0.0))
+
+        day, sd = crossing(1.0)
+        lo_db, hi_db = r.get("systematic_lo_db", math.nan), r.get("systematic_hi_db", math.nan)
+        systematic = bool(np.isfinite(lo_db) and np.isfinite(hi_db))
+        early, sd_e = crossing(10 ** (hi_db / 20)) if systematic else (day, sd)
+        late, sd_l = crossing(10 ** (lo_db / 20)) if systematic else (day, sd)
+        rows.append({**row, "status": "forecast", "crossing_date": date_of(day),
+                     "crossing_lo": date_of(min(early - z * sd_e, day - z * sd)),
+                     "crossing_hi": date_of(max(late + z * sd_l, day + z * sd)), "crossing_day": day,
+                     "crossing_sd_days": sd,
+                     "interval": "statistical and systematic" if systematic else "statistical only"})
     out = pd.DataFrame(rows)
     if out.empty:
         return out

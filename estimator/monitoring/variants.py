@@ -19,6 +19,30 @@ through the offset, :func:`receptance.dofs.shifted_point`'s model; here the
 sensor table's mounting point moves, which :func:`estimator.inversion.sensor_model`
 turns into that point).
 
+**Wheel–rail contact (load and geometry).** The estimator's Hertz contact
+(linearised stiffness ``k_H`` in the transfer functions, thesis eq. 2.5, and
+the contact-patch semi-axis ``a`` of the contact filter it undoes) is computed
+for one static wheel load and one pair of profile radii; in service both vary:
+the wheel load with the passengers carried (a metro trailer car between tare
+and crush load, ``±contact_load_range``, 25 % by default), the rail head's
+transverse radius with wear and where on the head the wheel runs (curves: the
+contact moves towards the gauge corner; ``contact_head_radius_m``, 0.2–0.5 m
+by default around the 0.3 m of a new head). ``k_H ∝ (P R)^{1/3}``-type changes
+of both the transfer functions and the contact filter follow from
+:meth:`receptance.contact.ContactParameters.contact`. One variant per range
+end (one at a time: a range is bounded, not a distribution).
+
+**Track.** The estimator's track is the thesis's continuously supported
+Timoshenko beam (Table 2.2 parameters, §2.4); a real track sits on discrete
+supports and its pads and ballast stiffen with temperature and age and differ
+from sleeper to sleeper. Variants: the receptance of the discretely supported
+rail (midspan, :func:`receptance.track.track_frf` ``supports="discrete"``) in
+place of the continuous one, and each of the pad and the ballast (subplate)
+stiffness times and divided by ``track_stiffness_factor`` (2 by default: the
+in-service spread of pad stiffness with temperature and ageing and of ballast
+stiffness along a line is about a factor 2 either side, e.g. Thompson,
+*Railway Noise and Vibration*, ch. 3 and 5).
+
 Each variant is a :class:`~estimator.workflow.FieldModel` of its own whose
 transfer functions are derived once and memoised, so all of a day's runs —
 and a fleet worker's whole batch — share them; a run's accelerations (read
@@ -38,7 +62,8 @@ import pandas as pd
 from estimator.monitoring.config import MonitoringConfig
 from estimator.monitoring.records import window_table
 
-__all__ = ["Variant", "perturbed_variants", "placement_variants", "variant_windows"]
+__all__ = ["Variant", "perturbed_variants", "placement_variants", "contact_variants", "track_variants",
+           "variant_windows"]
 
 log = logging.getLogger("estimator")
 
@@ -102,7 +127,55 @@ def placement_variants(field_model, cfg: MonitoringConfig = MonitoringConfig()) 
     return out
 
 
-def variant_windows(run, variants: list[Variant], alignments, cfg: MonitoringConfig) -> tuple[pd.DataFrame, list[str]]:
+def contact_variants(field_model, cfg: MonitoringConfig = MonitoringConfig()) -> list[Variant]:
+    """One field model per end of the wheel-load and rail-head-radius ranges (module docstring)."""
+    base = field_model.config.contact
+    vc = _variant_config(field_model, cfg)
+    out = []
+    ends = []
+    if cfg.contact_load_range > 0:
+        ends += [("wheel_load_N", base.wheel_load_N * (1 + sign * cfg.contact_load_range),
+                  f"wheel load {100 * sign * cfg.contact_load_range:+g} %") for sign in (-1, 1)]
+    ends += [("rail_head_radius", r, f"rail head radius {1e3 * r:g} mm") for r in cfg.contact_head_radius_m
+             if abs(r - base.rail_head_radius) > 1e-9]
+    for name, value, label in ends:
+        params = replace(base, **{name: value})
+        hc = params.contact()
+        out.append(Variant("contact", label, replace(field_model, config=vc.replace(contact=params),
+                                                     contact_stiffness=hc.stiffness, semi_axis_m=hc.semi_axis_x,
+                                                     cache={})))
+    return out
+
+
+def _with_trackforms(field_model, change):
+    """The field model with ``change(Trackform)`` applied to every trackform it uses (explicit, line's, default)."""
+    if field_model.trackform is not None or field_model.line is None or not field_model.trackforms():
+        return replace(field_model, trackform=change(field_model.default_trackform()), cache={})
+    line = field_model.line
+    tfs = tuple(replace(t, trackform=change(t.trackform)) if t.trackform is not None else t for t in line.trackforms)
+    return replace(field_model, line=replace(line, trackforms=tfs), cache={})
+
+
+def track_variants(field_model, cfg: MonitoringConfig = MonitoringConfig()) -> list[Variant]:
+    """Discrete supports, and pad and ballast stiffness times/divided by a factor (module docstring)."""
+    vc = _variant_config(field_model, cfg)
+    out = []
+    if cfg.track_discrete_supports and vc.trackform_supports != "discrete":
+        out.append(Variant("track", "discrete supports (midspan)",
+                           replace(field_model, config=vc.replace(trackform_supports="discrete"), cache={})))
+    f = cfg.track_stiffness_factor
+    if f > 1:
+        for layer, keys in (("pad", ("pad_stiffness_z", "pad_stiffness_y")),
+                            ("ballast", ("subplate_stiffness_z", "subplate_stiffness_y"))):
+            for k in (f, 1 / f):
+                change = (lambda tf, keys=keys, k=k: replace(tf, **{n: getattr(tf, n) * k for n in keys}))
+                fm = _with_trackforms(replace(field_model, config=vc), change)
+                out.append(Variant("track", f"{layer} stiffness x{k:.3g}", fm))
+    return out
+
+
+def variant_windows(run, variants: list[Variant], alignments, cfg: MonitoringConfig, field_model=None
+                    ) -> tuple[pd.DataFrame, list[str]]:
     """Every variant's band peak-to-peak per chainage window for one run (read once, estimated per variant).
 
     Parameters
@@ -113,6 +186,9 @@ def variant_windows(run, variants: list[Variant], alignments, cfg: MonitoringCon
     alignments : mapping wheelset → Alignment
         The nominal estimate's chainage corrections.
     cfg : MonitoringConfig
+    field_model : FieldModel, optional
+        The nominal model: with ``cfg.sensor_noise_rms_m_s2`` the noise floor is estimated with it too (source
+        ``floor``, :mod:`estimator.monitoring.floor`).
 
     Returns
     -------
@@ -133,6 +209,17 @@ def variant_windows(run, variants: list[Variant], alignments, cfg: MonitoringCon
             continue
         w = window_table(est, cfg.model, alignments, cfg.window_m)
         frames.append(w.assign(source=v.source, variant=v.label))
+    if field_model is not None and cfg.sensor_noise_rms_m_s2 is not None:
+        from estimator.monitoring.floor import FLOOR_SOURCE, noise_run
+
+        label = f"sensor noise {cfg.sensor_noise_rms_m_s2:g} m/s^2"
+        try:
+            est = estimate_run(noise_run(run, cfg.sensor_noise_rms_m_s2), field_model)
+            w = window_table(est, cfg.model, alignments, cfg.window_m)
+            frames.append(w.assign(source=FLOOR_SOURCE, variant=label))
+        except EstimatorError as exc:
+            problems.append(f"{label}: {exc}")
+            log.warning("%s: noise floor not estimated: %s", run.source, exc)
     if not frames:
         return pd.DataFrame(), problems
     return pd.concat(frames, ignore_index=True), problems

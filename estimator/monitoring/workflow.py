@@ -17,12 +17,18 @@
     4. ``uncertainty_runs`` runs of each day (the reference first, then the
        others by run id) also go through the perturbed and shifted-sensor
        models (:mod:`estimator.monitoring.variants`);
-    5. each run's rows are written to the store as soon as they are ready
+    5. runs whose own wheelbase measurement the single-run estimator refused are
+       processed again with their bogie's wheelbase measured on its other runs
+       of the batch and the store (:mod:`~estimator.monitoring.wheelbase`; the
+       source is stated in the run's row);
+    6. each run's rows are written to the store as soon as they are ready
        (:class:`~estimator.monitoring.store.MonitoringStore`: atomic,
        idempotent, safe with concurrent writers);
-    6. the days touched are re-averaged with their intervals (:func:`update_days`).
+    7. the days touched are re-averaged with their intervals (:func:`update_days`; estimates far from their
+       day's others left out, :mod:`~estimator.monitoring.outliers`; the noise floor subtracted,
+       :mod:`~estimator.monitoring.floor`).
 
-    Steps 2–4 are one task per run (:func:`process_run`), run by an executor
+    Steps 2–5 are one task per run (:func:`process_run`), run by an executor
     (:mod:`estimator.fleet`: this process, or Dask).
 
 :func:`update_days`
@@ -56,7 +62,7 @@ import pandas as pd
 
 from estimator.config import EstimatorConfig
 from estimator.errors import EstimatorError
-from estimator.monitoring.alignment import (Alignment, AlignmentStage, FeatureProfile, align_profiles, align_to_line,
+from estimator.monitoring.alignment import (Alignment, FeatureProfile, align_profiles, align_to_line,
                                             feature_profile)
 from estimator.monitoring.averaging import day_average, section_table
 from estimator.monitoring.config import MonitoringConfig, band_label
@@ -64,12 +70,16 @@ from estimator.monitoring.confidence import variant_deltas, variant_spread, with
 from estimator.monitoring.consistency import consistency_checks
 from estimator.monitoring.errors import MonitoringError, StoreError
 from estimator.monitoring.grinding import detect_grinding, grinding_effect
+from estimator.monitoring.floor import FLOOR_SOURCE, day_floor, with_floor
 from estimator.monitoring.headers import read_header
+from estimator.monitoring.outliers import outlying_estimates, without_outliers
 from estimator.monitoring.records import RunInfo, Sections, config_hash, file_hash, spectra_rows, toolkit_version, \
     window_table
 from estimator.monitoring.store import MonitoringStore
 from estimator.monitoring.trends import forecast, growth
-from estimator.monitoring.variants import placement_variants, perturbed_variants, variant_windows
+from estimator.monitoring.variants import (contact_variants, perturbed_variants, placement_variants, track_variants,
+                                           variant_windows)
+from estimator.monitoring.wheelbase import BogieWheelbase, bogie_key, is_wheelbase_failure, known_wheelbases
 
 __all__ = ["collect_runs", "IngestSpec", "DayReference", "RunResult", "IngestResult", "MonitorResult", "process_run", "ingest",
            "update_days", "monitor", "reprocess", "run_context"]
@@ -139,7 +149,9 @@ class _Context:
     def uncertainty_variants(self) -> list:
         if "all" not in self.variants:
             cfg = self.spec.monitoring
-            self.variants["all"] = perturbed_variants(self.field_model, cfg) + placement_variants(self.field_model, cfg)
+            fm = self.field_model
+            self.variants["all"] = (perturbed_variants(fm, cfg) + placement_variants(fm, cfg) + contact_variants(fm, cfg)
+                                    + track_variants(fm, cfg))
         return self.variants["all"]
 
 
@@ -210,16 +222,19 @@ class RunResult:
     aligned: bool = False
     reason: str = ""
     timings_s: Mapping[str, float] = field(default_factory=dict)
+    #: class name of the estimator error that failed the run ("" when it did not fail on one)
+    error_type: str = ""
 
 
-def _failure(path, header: Mapping, info: RunInfo, error: str, stage: str, line: str | None = None) -> RunResult:
+def _failure(path, header: Mapping, info: RunInfo, error: str, stage: str, line: str | None = None,
+             error_type: str = "") -> RunResult:
     run_id = str(header.get("run_id") or Path(path).stem)
     date = str(header.get("date", ""))
     date = date if _DATE.match(date) else "unknown"
     line = line or info.line or str(header.get("line") or "line")
     row = pd.DataFrame([{"run_id": run_id, "source": str(path), "stage": stage, "error": error, "section": "none",
                          "date": date, **_identity(info)}])
-    return RunResult(str(path), run_id, date, line, False, error, {"failures": row})
+    return RunResult(str(path), run_id, date, line, False, error, {"failures": row}, error_type=error_type)
 
 
 def _identity(info: RunInfo) -> dict:
@@ -264,8 +279,8 @@ def _align(est, feats: dict[int, FeatureProfile], reference: DayReference | None
     return out, ref, note
 
 
-def process_run(path, spec: IngestSpec, reference: DayReference | None = None, *, uncertainty: bool = False
-                ) -> RunResult:
+def process_run(path, spec: IngestSpec, reference: DayReference | None = None, *, uncertainty: bool = False,
+                wheelbase: BogieWheelbase | None = None) -> RunResult:
     """Estimate, align and tabulate one run (one task of :func:`ingest`; module docstring).
 
     Parameters
@@ -277,6 +292,9 @@ def process_run(path, spec: IngestSpec, reference: DayReference | None = None, *
         The day's reference; None makes this run the day's reference (aligned to the line's features).
     uncertainty : bool
         Also run the perturbed and shifted-sensor models on this run's accelerations.
+    wheelbase : BogieWheelbase, optional
+        The bogie's wheelbase known from its other runs (:mod:`~estimator.monitoring.wheelbase`): used instead of
+        measuring it on this run (whose own measurement failed); its source goes into the run's row.
 
     Returns
     -------
@@ -290,12 +308,16 @@ def process_run(path, spec: IngestSpec, reference: DayReference | None = None, *
     ctx = run_context(spec)
     cfg = spec.monitoring
     header: dict = {}
+    fm = ctx.field_model
+    if wheelbase is not None:
+        # the same transfer functions (the memo is shared): only the wheelbase is given instead of measured
+        fm = replace(fm, config=fm.config.replace(wheelbase_m=wheelbase.wheelbase_m))
     try:
         header = read_header(path)
-        run = read_run(path, ctx.field_model.sensors, direction=spec.direction)
-        est = estimate_run(run, ctx.field_model)
+        run = read_run(path, fm.sensors, direction=spec.direction)
+        est = estimate_run(run, fm)
     except (EstimatorError, OSError) as exc:
-        return _failure(path, header, ctx.info, str(exc), "estimate")
+        return _failure(path, header, ctx.info, str(exc), "estimate", error_type=type(exc).__name__)
     timings = {"estimate": time.perf_counter() - t_start}
     date = str(est.header.get("date", ""))
     if not _DATE.match(date):
@@ -327,7 +349,13 @@ def process_run(path, spec: IngestSpec, reference: DayReference | None = None, *
     problems: list[str] = []
     if uncertainty and accepted:
         t0 = time.perf_counter()
-        variants, problems = variant_windows(run, ctx.uncertainty_variants(), accepted, cfg)
+        vs = ctx.uncertainty_variants()
+        if wheelbase is not None:
+            vs = [replace(v, field_model=replace(v.field_model, config=v.field_model.config.replace(
+                wheelbase_m=wheelbase.wheelbase_m))) for v in vs]
+        # the noise floor with the run's own wheelbase (sensor noise alone has no lead/trail correlation to measure)
+        floor_fm = replace(fm, config=fm.config.replace(wheelbase_m=float(est.wheelbase_m)))
+        variants, problems = variant_windows(run, vs, accepted, cfg, field_model=floor_fm)
         if len(variants):
             variants = variants[variants["wheelset"].isin(list(accepted))]
             variants = variants.drop(columns=["speed_m_s", "lr_correlation", "role"]).assign(
@@ -350,6 +378,7 @@ def process_run(path, spec: IngestSpec, reference: DayReference | None = None, *
             "run_id": est.run_id, "source": str(path), "direction": est.direction, "train": str(est.header.get("train", "")),
             "bogie": str(est.header.get("bogie", "")), "leading": int(est.leading), "duration_s": float(est.duration_s),
             "masked_share": float(est.masked_share.get("run", math.nan)), "wheelbase_m": float(est.wheelbase_m),
+            "wheelbase_source": wheelbase.source if wheelbase is not None else str(est.wheelbase_source),
             "speed_m_s": float(ws["speed_m_s"].mean()) if len(ws) else math.nan,
             "valid_share": float(ws["valid_share"].mean()) if len(ws) else 0.0,
             "aligned": bool(accepted) and len(accepted) == len(alignments),
@@ -569,6 +598,26 @@ def ingest(runs: Sequence, spec: IngestSpec, store, *, executor=None,
                     chosen[d] = new[d]
                     again[d] = [p for p in all_paths[d] if p != new[d]]
         todo = again
+    # 4. runs whose wheelbase could not be measured: again with their bogie's wheelbase measured on its other runs
+    #    (this batch and the store; estimator.monitoring.wheelbase), the source stated in their row
+    retry_wb = wheelbase_retries(latest, headers, st, ctx.info.model_hash)
+    if retry_wb:
+        for d in sorted({headers[p]["date"] for p in retry_wb}):
+            ps = sorted(p for p in retry_wb if headers[p]["date"] == d)
+            if d not in refs:  # every candidate reference of the day failed: the first retried run is the reference
+                p0 = ps.pop(0)
+                (_, res), = ex.run(process_run, [((p0, spec, None), {"uncertainty": unc_k > 0,
+                                                                         "wheelbase": retry_wb[p0]})])
+                r = _as_result(res, p0, ctx, batch_line)
+                record(r)
+                if not (r.ok and r.reference is not None):
+                    continue
+                refs[d] = r.reference
+                st.write_reference(r.line, d, ctx.info.model_hash, r.reference.frame(), r.reference.meta())
+            shared = ex.share(refs[d])
+            calls = [((p, spec, shared), {"wheelbase": retry_wb[p]}) for p in ps]
+            for i, res in ex.run(process_run, calls):
+                record(_as_result(res, ps[i], ctx, batch_line))
     timings = {"runs": time.perf_counter() - t_start}
     written = list(latest.values())
     dates = tuple(sorted({r.date for r in written if r.ok}))
@@ -588,6 +637,34 @@ def ingest(runs: Sequence, spec: IngestSpec, store, *, executor=None,
                         ex.describe() if hasattr(ex, "describe") else type(ex).__name__, timings)
 
 
+def wheelbase_retries(results: Mapping[str, RunResult], headers: Mapping, store: MonitoringStore, model_hash: str
+                      ) -> dict[str, BogieWheelbase]:
+    """The runs of a batch to process again with their bogie's known wheelbase, and that wheelbase.
+
+    A run qualifies when its estimate failed only because its own wheelbase measurement was refused and its
+    bogie (header ``train``, ``bogie``) has wheelbases measured confidently on other runs of this batch or of the
+    store (:func:`~estimator.monitoring.wheelbase.known_wheelbases`). Runs already processed with a fallback are
+    not retried again.
+    """
+    failed = {p: r for p, r in results.items() if not r.ok and is_wheelbase_failure(r.error_type)
+              and isinstance(headers.get(p), Mapping)}
+    if not failed:
+        return {}
+    frames = [r.tables["runs"] for r in results.values() if r.ok and "runs" in r.tables]
+    stored = store.read("runs", model_hash=model_hash)
+    if len(stored):
+        frames.append(stored)
+    known = known_wheelbases(pd.concat(frames, ignore_index=True) if frames else pd.DataFrame())
+    out = {}
+    for p in failed:
+        kb = known.get(bogie_key(headers[p]))
+        if kb is None:
+            log.warning("%s: wheelbase not measured and no other run of bogie %s measured it", p, bogie_key(headers[p]))
+            continue
+        out[p] = kb
+    return out
+
+
 # --------------------------------------------------------------------------- the days
 def _masked_share(runs: pd.DataFrame) -> dict:
     if runs.empty:
@@ -597,19 +674,30 @@ def _masked_share(runs: pd.DataFrame) -> dict:
 
 def day_tables(windows: pd.DataFrame, variants: pd.DataFrame, runs: pd.DataFrame, cfg: MonitoringConfig
                ) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """Day averages with intervals per window and per section, from a version's run rows (no store needed)."""
+    """Day averages with intervals per window and per section, from a version's run rows (no store needed).
+
+    Estimates that depart from their day's others beyond the day's scatter
+    (:mod:`~estimator.monitoring.outliers`) are left out of the averages (their rows stay in the store); with a
+    noise floor (variants of source ``floor``) the levels are corrected for it (:mod:`~estimator.monitoring.floor`).
+    """
     ms = _masked_share(runs)
+    out = outlying_estimates(windows, cfg)
+    windows, variants = without_outliers(windows, out), without_outliers(variants, out)
+    floor = variants[variants["source"] == FLOOR_SOURCE] if len(variants) else variants
+    variants = variants[variants["source"] != FLOOR_SOURCE] if len(variants) else variants
     by = ("date", "section")
     dw = day_average(windows, ms, unit="window_m", by=by)
     sp = variant_spread(variant_deltas(variants, windows, "window_m"), unit="window_m", confidence=cfg.confidence,
                         by=by) if len(variants) else None
-    dw = with_intervals(dw, sp, unit="window_m", confidence=cfg.confidence, by=by)
+    dw = with_floor(with_intervals(dw, sp, unit="window_m", confidence=cfg.confidence, by=by),
+                    day_floor(floor, "window_m", by), "window_m", by)
     sw = section_table(windows)
     sv = section_table(variants) if len(variants) else variants
     ds = day_average(sw, ms, unit="section", by=("date",))
     sps = variant_spread(variant_deltas(sv, sw, "section"), unit="section", confidence=cfg.confidence,
                          by=("date",)) if len(sv) else None
-    ds = with_intervals(ds, sps, unit="section", confidence=cfg.confidence, by=("date",))
+    ds = with_floor(with_intervals(ds, sps, unit="section", confidence=cfg.confidence, by=("date",)),
+                    day_floor(section_table(floor) if len(floor) else floor, "section"), "section")
     return dw, ds
 
 
@@ -649,6 +737,8 @@ class MonitorResult:
         The run rows they come from.
     flags : DataFrame
         Consistency findings (:mod:`~estimator.monitoring.consistency`).
+    outliers : DataFrame
+        Run-wheelset estimates left out of the day averages (:mod:`~estimator.monitoring.outliers`).
     grinding, grinding_short, grinding_effect : DataFrame
     growth, forecast : DataFrame
     versions : DataFrame
@@ -680,6 +770,7 @@ class MonitorResult:
     sections: Sections
     alignment: pd.DataFrame
     consistency: Mapping = field(default_factory=dict)
+    outliers: pd.DataFrame = field(default_factory=pd.DataFrame)
 
 
 def _thresholds(cfg: MonitoringConfig, est_cfg: EstimatorConfig | None = None) -> dict:
@@ -710,9 +801,15 @@ def _in_range(df: pd.DataFrame, col: str, rng, width: float = 0.0) -> pd.DataFra
     return df[(x + width > rng[0]) & (x < rng[1])]
 
 
+def _until(df: pd.DataFrame, as_of: str | None) -> pd.DataFrame:
+    if as_of is None or df.empty or "date" not in df.columns:
+        return df
+    return df[df["date"].astype(str) <= as_of]
+
+
 def monitor(store, *, line: str | None = None, section_range: tuple[float, float] | None = None,
             model_hash: str | None = None, cfg: MonitoringConfig = MonitoringConfig(),
-            estimator_config: EstimatorConfig | None = None, line_file=None) -> MonitorResult:
+            estimator_config: EstimatorConfig | None = None, line_file=None, as_of: str | None = None) -> MonitorResult:
     """A line's monitoring state from the store (module docstring).
 
     Parameters
@@ -729,6 +826,9 @@ def monitor(store, *, line: str | None = None, section_range: tuple[float, float
         For the default band thresholds.
     line_file : path, optional
         ``line.json`` for the sections' extents (default: fixed-length sections).
+    as_of : str, optional
+        ``YYYY-MM-DD``: the line as it was known on that day (only the survey days up to it): the growth and the
+        grinding plan that were forecast then, to be checked against what happened afterwards.
     """
     from estimator.io import read_line
 
@@ -747,14 +847,18 @@ def monitor(store, *, line: str | None = None, section_range: tuple[float, float
     ln = read_line(line_file) if line_file else None
     est_cfg = estimator_config or EstimatorConfig()
     sections = Sections.of(ln, est_cfg.section_length_m)
-    runs = st.read("runs", line=line, model_hash=mh)
+    if as_of is not None and not _DATE.match(str(as_of)):
+        raise MonitoringError(f"as_of must be a date YYYY-MM-DD, got {as_of!r}")
+    runs = _until(st.read("runs", line=line, model_hash=mh), as_of)
     win = _in_range(st.read("windows", line=line, model_hash=mh), "window_m", section_range, cfg.window_m)
     var = _in_range(st.read("variants", line=line, model_hash=mh), "window_m", section_range, cfg.window_m)
+    win, var = _until(win, as_of), _until(var, as_of)
     if win.empty:
         raise StoreError(f"store {st.root}: no band index of line {line!r}, model {mh}"
-                         + (f" in {section_range[0]:g}-{section_range[1]:g} m" if section_range else ""))
-    dw = _in_range(st.read("days", line=line, model_hash=mh), "window_m", section_range, cfg.window_m)
-    ds = st.read("day_sections", line=line, model_hash=mh)
+                         + (f" in {section_range[0]:g}-{section_range[1]:g} m" if section_range else "")
+                         + (f" up to {as_of}" if as_of else ""))
+    dw = _until(_in_range(st.read("days", line=line, model_hash=mh), "window_m", section_range, cfg.window_m), as_of)
+    ds = _until(st.read("day_sections", line=line, model_hash=mh), as_of)
     if dw.empty or ds.empty or section_range is not None:
         dw, ds = day_tables(win, var, runs, cfg)
     th = _thresholds(cfg, est_cfg)
@@ -775,11 +879,11 @@ def monitor(store, *, line: str | None = None, section_range: tuple[float, float
         j = ds.merge(od[keys + ["level_db"]], on=keys, suffixes=("", "_other"))
         j = j.assign(other_model=other, change_db=j["level_db"] - j["level_db_other"])
         changes.append(j[keys + ["other_model", "level_db", "level_db_other", "change_db"]])
-    alignment = st.read("alignment", line=line, model_hash=mh)
+    alignment = _until(st.read("alignment", line=line, model_hash=mh), as_of)
     return MonitorResult(line, mh, section_range, runs.drop_duplicates("run_id") if len(runs) else runs, dw, ds, win,
                          var, flags, events, short, effect, gr, fc, versions,
                          pd.concat(changes, ignore_index=True) if changes else pd.DataFrame(), th, sections, alignment,
-                         checks)
+                         checks, outlying_estimates(win, cfg))
 
 
 def reprocess(store, spec: IngestSpec, *, line: str | None = None, from_model: str | None = None, executor=None,
