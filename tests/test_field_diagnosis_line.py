@@ -1,40 +1,145 @@
-"""Field diagnosis on the virtual line (issue 15 acceptance, short section): the hidden trackform change is found.
+"""Field diagnosis on the virtual line (issue 15 acceptance, short section 400-800 m, 2 days × 2 runs).
 
-Scenario ``trackform_change``: pads and subplates 40 % softer on 720-780 m, not in ``line.json``. Calibration:
-day 1 over 400-800 m; validation: day 2 (the fit never sees it). Oracle: the scenario's truth (factor 0.6).
+Calibration: day 1 over 400-800 m; validation: day 2 (the fit never sees it). Oracles: each scenario's truth
+(``truth/truth.json``: the hidden support change, the gauge narrowing behind the contact angles) and the line's
+own curving law (:func:`lab_data.line.curving.rail_contact_angles`) for the true angles.
+
+Measured with the bogie's rail coupling and the wheelset's comb in the evidence (the estimator's own steps):
+``nominal`` calibration error 1.52 dB (2.8 dB without them: +4.5 dB in the 50 mm band of the corrugated rail at
+the curve's 9.1 m/s, i.e. 182 Hz, where the second wheelset's reflection of the rail's bending waves raises the
+point response by 3.5 dB); ``trackform_change`` factor 0.62 (truth 0.60), validation error −62 %;
+``contact_angle`` leading wheelset γ on the outer rail 1.066 rad (truth 1.017), validation −72 %;
+``lateral_sign`` nothing forced, the reversed channel named by the channel check; ``pad_defect`` nothing forced,
+located at 591-592 m on rail L.
 """
 
 from __future__ import annotations
 
+import functools
 import glob
+import math
 
+import numpy as np
 import pytest
 
+pytestmark = pytest.mark.slow
 
-@pytest.mark.slow
-def test_trackform_change_on_the_virtual_line(tmp_path):
-    from estimator.config import EstimatorConfig
-    from estimator.diagnosis import DiagnosisConfig, TrackformEffect, run_field_diagnosis
-    from lab_data.line.cache import line_campaign_dir
-    from lab_data.line.campaign import FIRST_CURVE_SECTION
-    from lab_data.line.files import read_truth
+
+@functools.lru_cache(maxsize=1)
+def _model_file() -> str:
+    import tempfile
+    from pathlib import Path
+
     from receptance import save_model
     from test_estimator_synthetic import control_model
 
-    d = line_campaign_dir("trackform_change", days=2, runs_per_day=2, section=FIRST_CURVE_SECTION)
-    truth = read_truth(d)["scenario"]["support_changes"][0]
-    model = tmp_path / "hybrid_model.npz"
-    save_model(control_model(), model)
+    path = Path(tempfile.mkdtemp(prefix="field_diag_line_")) / "hybrid_model.npz"
+    save_model(control_model(), path)
+    return str(path)
+
+
+def _diagnose(scenario: str, **config):
+    from estimator.config import EstimatorConfig
+    from estimator.diagnosis import DiagnosisConfig, run_field_diagnosis
+    from lab_data.line.cache import line_campaign_dir
+    from lab_data.line.campaign import FIRST_CURVE_SECTION
+
+    d = line_campaign_dir(scenario, days=2, runs_per_day=2, section=FIRST_CURVE_SECTION)
     res = run_field_diagnosis(sorted(glob.glob(f"{d}/runs/*/*.mf4")), sorted(glob.glob(f"{d}/trolley/*.csv")),
-                              FIRST_CURVE_SECTION, model, f"{d}/sensors.csv", line=f"{d}/line.json",
-                              config=DiagnosisConfig(effects=("trackform", "contact_stiffness"), workers=2,
-                                                     max_effects=1),
+                              FIRST_CURVE_SECTION, _model_file(), f"{d}/sensors.csv", line=f"{d}/line.json",
+                              config=DiagnosisConfig(workers=2, **config),
                               estimator_config=EstimatorConfig(wheelbase_m=2.1))
+    return d, res
+
+
+def test_trackform_change_on_the_virtual_line():
+    """Pads and subplates 40 % softer on 720-780 m (not in ``line.json``): found first, within 25 %, and the
+    validation error where it acts at least halved (measured −62 %)."""
+    from estimator.diagnosis import TrackformEffect
+    from lab_data.line.files import read_truth
+
+    d, res = _diagnose("trackform_change", effects=("trackform", "contact_stiffness"), max_effects=1)
+    truth = read_truth(d)["scenario"]["support_changes"][0]
     first = res.diagnosis.rounds[0][0]
     assert isinstance(first.effect, TrackformEffect)
     # the stretch holds the hidden change, and not much more of the evidence than it
     assert first.effect.from_m <= truth["from_m"] + 24 and first.effect.to_m >= truth["to_m"] - 24
     assert abs(first.params["stiffness_factor"] / truth["factors"]["pad_stiffness_z"] - 1) < 0.25
     assert res.diagnosis.accepted and res.diagnosis.accepted[0].effect == first.effect
-    # validation (day 2, the cells it acts on): the error falls by 40 % at least (measured 45 %)
-    assert first.validation_after <= 0.6 * first.validation_before
+    assert first.validation_after <= 0.5 * first.validation_before
+
+
+def test_contact_angle_on_the_virtual_line():
+    """Outer-rail gauge 3 mm tight: the leading wheelset's contact angles on curve C1 are found first, the outer
+    rail's (L, 58°) within 25 % of the line's own curving law at the curve's speed, the validation error at least
+    halved (measured −72 %)."""
+    from estimator.diagnosis import ContactAngle
+    from lab_data.line.curving import CurvingParameters, rail_contact_angles
+    from lab_data.line.files import read_truth
+    from lab_data.line.geometry import default_line
+
+    d, res = _diagnose("contact_angle", effects=("contact_angle", "contact_stiffness"), max_effects=1)
+    truth = read_truth(d)
+    first = res.diagnosis.rounds[0][0]
+    assert isinstance(first.effect, ContactAngle) and first.effect.curve == "C1" and first.effect.role == "leading"
+    import pandas as pd
+
+    body = []  # the true speed over the curve's body (510-670 m) in the calibration day's runs
+    for r in truth["runs"]:
+        if r["day"] == 1:
+            tr = pd.read_parquet(f"{d}/truth/runs/{r['run_id']}.parquet")
+            body.append(tr["speed_m_s"][(tr["chainage_m"] > 510) & (tr["chainage_m"] < 670)].abs().to_numpy())
+    speed = float(np.median(np.concatenate(body)))
+    cp = CurvingParameters(**{k: v for k, v in truth["curving"].items() if k in CurvingParameters.__dataclass_fields__})
+    g_l, g_r = rail_contact_angles(default_line(), np.array([590.0]), np.array([speed]), np.array([True]), cp)
+    assert abs(first.params["gamma_L"] / float(g_l[0]) - 1) < 0.25
+    assert abs(first.params["gamma_R"] - float(g_r[0])) < math.radians(1.0)
+    assert res.diagnosis.accepted and res.diagnosis.accepted[0].effect == first.effect
+    assert first.validation_after <= 0.5 * first.validation_before
+
+
+def test_nominal_on_the_virtual_line_accepts_nothing_and_its_evidence_is_clean():
+    """No hidden effect: nothing of the whole catalogue is accepted. The evidence mirrors the estimator (bogie
+    coupling, comb): calibration error ≤ 2 dB (measured 1.52 dB; 2.8 dB without), and the corrugated rail's
+    50 mm band (182 Hz at the curve's speed) within 2.5 dB of the trolley (measured +1.2 dB; +4.5 dB without)."""
+    _, res = _diagnose("nominal")
+    diag = res.diagnosis
+    assert diag.accepted == (), diag.verdict
+    e = diag.errors.query("stage == 'nominal' and set == 'calibration'")["error_db"].iloc[0]
+    assert e <= 2.0
+    bb = diag.by_band.query("stage == 'nominal' and set == 'calibration' and rail == 'R'")
+    r50 = bb[(bb["wavelength_mm"] > 45) & (bb["wavelength_mm"] < 56)]
+    assert not r50.empty and float(np.abs(r50["mean_error_db"]).max()) <= 2.5
+    assert res.channel_check is not None and res.channel_check.empty  # no accelerometer reads against the model
+
+
+def test_reversed_lateral_accelerometer_is_not_forced_and_is_located():
+    """``ACC_W1L_Y`` mounted the wrong way round (outside the catalogue): the band errors barely see it (the
+    inversion leans on the vertical channels: E 1.53 dB as on ``nominal``), no effect is forced onto it, and the
+    channel check names it: it reads against what the model predicts from the wheelset's other channels in every
+    segment (median ρ −0.62, nominal +0.60), and reversing it makes the wheelset agree."""
+    from lab_data.line.files import read_truth
+
+    d, res = _diagnose("lateral_sign", effects=("sensor_offset", "contact_angle", "contact_stiffness"))
+    flipped = read_truth(d)["scenario"]["sign_flips"]
+    assert res.diagnosis.accepted == (), res.diagnosis.verdict
+    bad = res.channel_check
+    assert list(bad["channel"]) == flipped and list(bad["reversal_explains"]) == flipped
+    assert float(bad["share_negative"].iloc[0]) >= 0.9 and float(bad["median_rho"].iloc[0]) < -0.3
+    assert flipped[0] in res.diagnosis.verdict
+
+
+def test_pad_defect_is_not_forced_and_is_located():
+    """Four rail pads of rail L at 590 m lost 85 % of their stiffness (outside the catalogue: a few sleepers are a
+    defect, not a trackform section): no trackform change is forced onto it, and the comparison names the spot —
+    a local departure of the 100-300 mm band index on rail L inside the defect's metres (measured 591-592 m,
+    +3.4 dB)."""
+    from lab_data.line.files import read_truth
+
+    d, res = _diagnose("pad_defect", effects=("trackform",), max_effects=1)
+    truth = read_truth(d)["scenario"]["support_changes"][0]
+    assert res.diagnosis.accepted == (), res.diagnosis.verdict
+    an = res.comparison.anomalies
+    hit = an[(an["rail"] == truth["rail"]) & (an["to_m"] > truth["from_m"] - 1) & (an["from_m"] < truth["to_m"] + 1)]
+    assert not hit.empty, an
+    assert (an["rail"] == truth["rail"]).all() and an["from_m"].between(truth["from_m"] - 5, truth["to_m"] + 5).all()

@@ -30,7 +30,8 @@ __all__ = ["FieldComparison", "compare_with_reference", "index_errors", "locate_
 #: a band, rail, speed range or role whose RMS error exceeds this (and the floor's margin) is where it fails
 FAIL_DB = 3.0
 #: a chainage window whose band-index error departs from the stretch's median by more than this (and by 4 robust
-#: standard deviations) in the same direction in every run is a local anomaly
+#: standard deviations) in the same direction in every run and wheelset (all but one of four or more) is a local
+#: anomaly
 ANOMALY_DB = 3.0
 
 
@@ -112,12 +113,14 @@ def index_errors(estimate, aligned: dict, site: tuple[float, float], calibration
 
 def locate_anomalies(estimates, aligned_by_date: dict, span: tuple[float, float], est_cfg, window_m: float = 1.0
                      ) -> pd.DataFrame:
-    """Chainage windows where the estimate departs from the reference locally, the same way in every run.
+    """Chainage windows where the estimate departs from the reference locally, the same way in (nearly) every run.
 
     Per run, wheelset, rail and EN 13231-3 band the window error ``20 lg(pk_est/pk_ref)`` on ``window_m``
     windows (:func:`estimator.reference.window_pk`); per window the median over runs and wheelsets; a window
     stands out when that median departs from the band's median along the stretch by more than
-    :data:`ANOMALY_DB` and 4 × 1.4826 × MAD, with the same sign in every run. Adjacent windows merge.
+    :data:`ANOMALY_DB` and 4 × 1.4826 × MAD, with the same sign in every run and wheelset estimate — all but one
+    when there are four or more (a soft pad over four sleepers, 590 m on the virtual line, reads +3…+4 dB in
+    100-300 mm in three of the four estimates and +0.9 dB in the fourth). Adjacent windows merge.
     """
     from estimator.reference import reference_indexes, window_pk
 
@@ -149,7 +152,10 @@ def locate_anomalies(estimates, aligned_by_date: dict, span: tuple[float, float]
         centre = float(np.median(med[ok]))
         mad = 1.4826 * float(np.median(np.abs(med[ok] - centre)))
         dev = med - centre
-        same = np.all(np.sign(E - centre) == np.sign(dev)[None], axis=0)
+        # the same direction in (nearly) every run and wheelset: a random fluctuation does not repeat
+        n_est = np.isfinite(E).sum(axis=0)
+        agree = (np.sign(E - centre) == np.sign(dev)[None]).sum(axis=0)
+        same = agree >= np.maximum(n_est - (n_est >= 4), 1)
         hot = ok & same & (np.abs(dev) > max(ANOMALY_DB, 4 * mad))
         for i in np.flatnonzero(hot):
             rows.append({"from_m": float(edges[i]), "to_m": float(edges[i + 1]), "rail": rail, "band_mm": band,

@@ -184,7 +184,8 @@ class SensorOffset(FieldEffect):
         return f"channel {self.channel}"
 
     def acts_on(self, seg) -> bool:
-        return seg.wheelset == self.wheelset
+        # the other wheelset's channels enter a coupled segment through its contact forces
+        return self.wheelset in (seg.wheelset, seg.other)
 
     def apply(self, state, values):
         d = {a: values.get(a, 0.0) for a in ("dx", "dy", "dz")}

@@ -14,6 +14,22 @@ The reference (trolley) gets the same windows in chainage; its own noise
 whose reference lies less than ``min_reference_snr_db`` above that noise
 holds no evidence.
 
+With the bogie's rail coupling (the estimator's ``bogie_coupling``), ``S``
+holds the other wheelset's channels too, at the same instants (appended after
+the segment's own ones): the estimator adds the rail deflection the other
+wheelset's contact forces cause, so its estimate is a map of both
+(:meth:`estimator.diagnosis.transfer.WheelsetBlocks.coupled_transfer`).
+
+The estimator removes each wheelset's own roughness with its comb filter
+(:func:`estimator.wheel.comb`: the synchronous average over ``±R``
+revolutions of the wheel, subtracted); a spectrum of the raw accelerations
+would carry it (+1 dB on an in-service rail where the wheels are 6 dB
+smoother, +3 dB on a fresh-ground one). :func:`comb_channels` applies the
+same comb to the channels first, in the wheelset's angle, with the
+circumference the estimator found — at a locally constant speed the comb
+and the inversion's linear time-invariant filter commute, so the estimate
+of the combed channels is the estimator's combed estimate.
+
 Cells: run × wheelset × segment × rail × one-third-octave wavelength band
 (IEC 61260 base-10 bands) that the segment's speed puts inside the
 inversion band and that ``min_cycles`` wavelengths fit into one window.
@@ -32,7 +48,7 @@ from scipy import signal
 from estimator.diagnosis.errors import ReferenceCoverageError
 
 __all__ = ["SegmentSpectra", "Evidence", "third_octave_bands", "reference_band_variance", "run_segments",
-           "segments_of", "cells_frame"]
+           "segments_of", "cells_frame", "comb_channels"]
 
 log = logging.getLogger("estimator")
 
@@ -89,6 +105,10 @@ class SegmentSpectra:
         The reference's band variance per rail [m²] (NaN where it has no evidence).
     ref_noise_var : ndarray (n_rails, n_b)
         The reference's own noise in the band [m²].
+    other : int or None
+        The bogie's other wheelset whose channels follow the own ones in ``S`` (rail coupling), or None.
+    wheelbase_m : float or None
+        The distance between the two wheelsets the estimator used (with ``other``).
     """
 
     run_id: str
@@ -106,6 +126,8 @@ class SegmentSpectra:
     bands: np.ndarray
     ref_var: np.ndarray
     ref_noise_var: np.ndarray
+    other: int | None = None
+    wheelbase_m: float | None = None
 
     @property
     def centre_m(self) -> float:
@@ -164,9 +186,71 @@ def reference_band_variance(x: np.ndarray, r: np.ndarray, band_table: np.ndarray
     return var, noise
 
 
+#: band-limited upsampling of the channels before they are read on the wheel's angle grid (polyphase FIR)
+COMB_UPSAMPLING = 4
+
+
+def comb_channels(acc: np.ndarray, chainage: np.ndarray, circumference_m: float, revolutions: int) -> np.ndarray:
+    """Accelerations with one wheelset's periodic (wheel) part removed by the estimator's comb.
+
+    Parameters
+    ----------
+    acc : ndarray (m, n)
+        Channels [m/s²], NaN where masked (the comb leaves those out and they stay NaN).
+    chainage : ndarray (n,)
+        The wheelset's chainage at each sample (either direction of travel).
+    circumference_m : float
+        The wheel's rolling circumference on the same chainage (:func:`estimator.wheel.circumference`).
+    revolutions : int
+        ``R`` of :func:`estimator.wheel.comb`.
+
+    Returns
+    -------
+    ndarray (m, n)
+        ``acc − periodic``: the channels are upsampled :data:`COMB_UPSAMPLING` × (polyphase FIR,
+        :func:`scipy.signal.resample_poly`) and read on an angle grid as fine as the upsampled samples, the
+        comb's synchronous average over the neighbouring revolutions is taken there and read back at each
+        sample's angle. Samples where the wheel does not advance (standstill, reversing) keep their value (the
+        speed gate drops them).
+    """
+    from estimator.wheel import comb
+
+    acc = np.asarray(acc, float)
+    u = np.asarray(chainage, float)
+    n = u.size
+    if n < 16:
+        return acc.copy()
+    u = u * (1.0 if u[-1] >= u[0] else -1.0)
+    ok = np.isfinite(acc).all(axis=0)
+    q = COMB_UPSAMPLING
+    up = signal.resample_poly(np.where(ok, acc, 0.0), q, 1, axis=1)[:, :q * (n - 1) + 1]
+    pos = np.arange(up.shape[1]) / q
+    u_up = np.interp(pos, np.arange(n), u)
+    bad_up = np.interp(pos, np.arange(n), (~ok).astype(float)) > 0
+    forward = np.concatenate([[True], np.diff(u_up) > 0]) & (u_up >= np.maximum.accumulate(u_up))
+    if forward.sum() < 2:
+        return acc.copy()
+    us = u_up[forward]
+    step = float(np.max(np.diff(us)))
+    n_per_rev = int(math.ceil(circumference_m / step))
+    dx = circumference_m / n_per_rev
+    grid = np.arange(us[0], us[-1], dx)
+    if grid.size < 2 * n_per_rev:
+        return acc.copy()
+    X = np.stack([np.interp(grid, us, a[forward]) for a in up])
+    X[:, np.interp(grid, us, bad_up[forward].astype(float)) > 0] = np.nan
+    periodic = np.nan_to_num(X - comb(X, n_per_rev, revolutions)[0])
+    out = acc.copy()
+    fwd = np.concatenate([[True], np.diff(u) > 0]) & (u >= np.maximum.accumulate(u))
+    for i in range(acc.shape[0]):
+        out[i, fwd] = acc[i, fwd] - np.interp(u[fwd], grid, periodic[i])
+    return out
+
+
 def run_segments(run, wheelset: int, kind: str, chainage: np.ndarray, speed: np.ndarray, role: str,
                  rails: tuple[str, ...], segments: list[tuple[float, float]], reference: dict, band_table: np.ndarray,
-                 cfg, est_cfg, classes_of) -> tuple[list[SegmentSpectra], list[str]]:
+                 cfg, est_cfg, classes_of, *, coupled: tuple[int, float] | None = None,
+                 acceleration: np.ndarray | None = None) -> tuple[list[SegmentSpectra], list[str]]:
     """The :class:`SegmentSpectra` of one run's wheelset on the given segments.
 
     Parameters
@@ -186,13 +270,22 @@ def run_segments(run, wheelset: int, kind: str, chainage: np.ndarray, speed: np.
     classes_of : callable
         ``(chainage samples) -> (curve id or None, (θ_L, θ_R))`` or None where the segment straddles classes
         (a transition or a trackform boundary: not used).
+    coupled : (int, float), optional
+        ``(other wheelset, wheelbase [m])``: the other wheelset's channels of the same model are appended to
+        ``S`` (module docstring); its masked samples count too.
+    acceleration : ndarray (n_channels, n_samples), optional
+        The run's channels (rows of ``run.acceleration``) to use instead, e.g. combed (:func:`comb_channels`).
     """
     from estimator.inversion import model_channels
 
     chans = run.wheelset_channels(wheelset)
     rows, _ = model_channels(kind, chans)
     idx = chans.loc[rows, "row"].to_numpy(int)
-    acc = run.acceleration[idx]
+    if coupled is not None:
+        chans_o = run.wheelset_channels(coupled[0])
+        rows_o, _ = model_channels(kind, chans_o)
+        idx = np.concatenate([idx, chans_o.loc[rows_o, "row"].to_numpy(int)])
+    acc = (run.acceleration if acceleration is None else acceleration)[idx]
     masked = run.mask.masked[idx].any(axis=0) if run.mask is not None else np.zeros(acc.shape[1], bool)
     fs = run.fs
     f_lo, f_hi = est_cfg.f_lo_hz, est_cfg.f_hi(fs)
@@ -247,7 +340,8 @@ def run_segments(run, wheelset: int, kind: str, chainage: np.ndarray, speed: np.
             rejected.append(f"{where}: the reference does not cover it: not used")
             continue
         out.append(SegmentSpectra(run.run_id, run.header.date, wheelset, role, a, b, vm, rails, curve, theta, f, S,
-                                  ok_bands, ref_var, ref_noise))
+                                  ok_bands, ref_var, ref_noise, None if coupled is None else int(coupled[0]),
+                                  None if coupled is None else float(coupled[1])))
     return out, rejected
 
 

@@ -4,10 +4,12 @@ For each segment the transfer function the estimator would use there under
 a :class:`~estimator.diagnosis.state.FieldState` (the trackform at the
 segment with the state's section changes, the curve's calibrated angles for
 the wheelset's role, the wheel load's Hertz stiffness, the sensors' mounting
-points, the support model) is assembled by
+points, the support model, and the rail coupling to the bogie's other
+wheelset when the evidence holds its channels) is assembled by
 :meth:`~estimator.diagnosis.transfer.WheelsetBlocks.transfer` (memoised per
 distinct value), and the band variance of ``T S_a Tᴴ``
-(:mod:`estimator.diagnosis.evidence`) gives the estimate's level. A wheel's
+(:mod:`estimator.diagnosis.evidence`), times the estimator's contact-filter
+correction where it applies one, gives the estimate's level. A wheel's
 roughness left in the estimate is removed in power (its spectrum
 ``L(λ) = level + slope·log₂(λ/0.1 m)`` dB re 1 µm per one-third-octave band).
 """
@@ -19,6 +21,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from estimator.contact_filter import contact_gain
 from estimator.diagnosis.evidence import Evidence
 from estimator.diagnosis.state import FieldState
 from estimator.diagnosis.transfer import interp_transfer
@@ -43,15 +46,31 @@ class Evaluator:
         Chainage → the line's trackform there (before any calibration).
     contact : ContactParameters
         The estimator's contact (the wheel load is the state's when it has one).
+    contact_filter : bool
+        The estimator undoes the contact patch's averaging (:func:`estimator.contact_filter.contact_gain`,
+        its ``contact_filter`` option): the estimate's spectrum is multiplied by the squared gain at
+        ``κ = f/v`` (the reference is the unfiltered rail).
     """
 
     evidence: Evidence
     blocks: dict
     base_trackform: object
     contact: object
+    contact_filter: bool = False
     _memo: dict = field(default_factory=dict, repr=False)
 
+    def semi_axis(self, state: FieldState) -> float:
+        """The Hertz contact's semi-axis along the track [m] at the state's wheel load."""
+        return float(self._hertz(state).semi_axis_x)
+
     def trackform_at(self, state: FieldState, x: float):
+        key = ("tf", x, state.trackform_changes, state.support_spacing_m)
+        tf = self._memo.get(key)
+        if tf is None:
+            tf = self._memo[key] = self._trackform_at(state, x)
+        return tf
+
+    def _trackform_at(self, state: FieldState, x: float):
         tf = self.base_trackform(x)
         for ch in state.trackform_changes:
             if ch.from_m <= x <= ch.to_m:
@@ -71,25 +90,48 @@ class Evaluator:
         # vehicle sides: θ_L = −γ of the rail under the left wheel, θ_R = +γ of the rail under the right one
         return -gamma[seg.rails[0]], gamma[seg.rails[1]]
 
+    def _hertz(self, state: FieldState):
+        key = ("hertz", state.wheel_load_N)
+        h = self._memo.get(key)
+        if h is None:
+            c = self.contact if state.wheel_load_N is None else replace(self.contact, wheel_load_N=state.wheel_load_N)
+            h = self._memo[key] = c.contact()
+        return h
+
     def stiffness(self, state: FieldState) -> float:
-        c = self.contact if state.wheel_load_N is None else replace(self.contact, wheel_load_N=state.wheel_load_N)
-        return float(c.contact().stiffness)
+        return float(self._hertz(state).stiffness)
 
     def transfer(self, state: FieldState, seg) -> np.ndarray:
+        """The estimator's map from the segment's channels (``seg.S``'s rows) to the irregularity per side.
+
+        ``(n_f, sides, m)``, or ``(n_f, sides, m + m')`` with the other wheelset's channels when the segment
+        holds them (the rail coupling: :meth:`~estimator.diagnosis.transfer.WheelsetBlocks.coupled_transfer`).
+        """
         bl = self.blocks[seg.wheelset]
         tf = self.trackform_at(state, seg.centre_m)
         th = self.theta_at(state, seg)
         th = (round(th[0], 6), round(th[1], 6))
         k = self.stiffness(state)
         offs = tuple(state.offset_of(c) for c in bl.channels)
-        key = (seg.wheelset, tf, th, round(k, 3), offs, state.supports)
+        other = self.blocks.get(seg.other) if seg.other is not None else None
+        offs_o = tuple(state.offset_of(c) for c in other.channels) if other is not None else ()
+        wb = round(float(seg.wheelbase_m), 4) if other is not None else None
+        key = (seg.wheelset, tf, th, round(k, 3), offs, state.supports, seg.other, offs_o, wb)
         T = self._memo.get(key)
         if T is None:
             if len(self._memo) > _MEMO_MAX:
-                for k in [k for k in self._memo if k[0] != "bands"]:
-                    del self._memo[k]
-            T = bl.transfer(tf, th, k, offsets=np.array(offs) if any(any(o) for o in offs) else None,
-                            supports=state.supports)
+                # (not ``k``: that is the Hertz stiffness used below)
+                for old in [m for m in self._memo if m[0] != "bands"]:
+                    del self._memo[old]
+
+            def arr(o):
+                return np.array(o) if any(any(v) for v in o) else None
+
+            if other is None:
+                T = bl.transfer(tf, th, k, offsets=arr(offs), supports=state.supports)
+            else:
+                T = bl.coupled_transfer(other, tf, th, k, wb, offsets=arr(offs), offsets_other=arr(offs_o),
+                                        supports=state.supports)
             self._memo[key] = T
         return T
 
@@ -110,6 +152,12 @@ class Evaluator:
         used, W = self._memo[key]
         T = interp_transfer(self.transfer(state, seg), bl.df, seg.f[used])
         psd = np.sum((T @ seg.S[used]) * np.conj(T), axis=-1).real  # diag(T S Tᴴ), (n_f, sides)
+        if self.contact_filter:
+            a = round(self.semi_axis(state), 9)
+            gkey = ("gain", si, a)
+            if gkey not in self._memo:
+                self._memo[gkey] = contact_gain(seg.f[used] / seg.speed_m_s, a) ** 2
+            psd = psd * self._memo[gkey][:, None]
         out = psd.T @ W
         for w, side, level, slope in state.wheel_roughness:
             if w != seg.wheelset:
@@ -135,7 +183,7 @@ class Evaluator:
             th = self.theta_at(state, seg)
             offs = [state.offset_of(c) for c in bl.channels]
             H = bl.forward(tf, th, self.stiffness(state), offsets=np.array(offs), supports=state.supports)
-            T = self.transfer(state, seg)
+            T = self.transfer(state, seg)[:, :, :len(bl.channels)]  # the own channels' part: T of the wheelset
             R = np.abs(np.einsum("fim,fmj->fij", T, H)) ** 2  # (n_f, sides, sides) on the blocks' grid
             e = np.full((len(seg.rails), seg.bands.size), np.nan)
             for k, b in enumerate(seg.bands):

@@ -54,6 +54,8 @@ def diagnosis_document(res) -> dict:
         "band_index_errors": idx.to_dict(orient="records"),
         "residual": d.residual.to_dict(orient="records"),
         "unexplained": d.unexplained_stretches(),
+        "inconsistent_channels": ([] if res.channel_check is None
+                                  else res.channel_check.to_dict(orient="records")),
         "comparison": res.comparison.as_dict(),
         "calibrated_state": res.state.as_dict(),
         "runs": res.runs.to_dict(orient="records"), "rejected": list(res.rejected),

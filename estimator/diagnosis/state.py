@@ -25,10 +25,9 @@ wheel whose roughness is left in the estimate and is reported, not applied.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, replace
 from typing import Mapping
 
-import numpy as np
 import pandas as pd
 
 from estimator.io.line import LineDescription, TrackSection

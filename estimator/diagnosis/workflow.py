@@ -13,13 +13,19 @@
    layer's two-pass piecewise fit, against the day's first run);
 4. builds the evidence once (:mod:`estimator.diagnosis.evidence`): segments
    inside the site on the calibration day calibrate, every other segment
-   (other stretches, other days) validates;
+   (other stretches, other days) validates; with the estimator's
+   ``bogie_coupling`` each segment holds both wheelsets' channels (the
+   estimate of one depends on the other's through the rail), combed as the
+   estimator combs that wheelset's estimate;
 5. compares and localises (:mod:`estimator.diagnosis.compare`), fits and
    ranks the catalogue (:func:`~estimator.diagnosis.diagnose.diagnose_field`);
 6. re-estimates every run with the calibrated model
    (:func:`~estimator.diagnosis.state.field_model_for`) and reports the
    EN 13231-3 band-index error before and after, on the calibration site
-   and on the validation stretches.
+   and on the validation stretches;
+7. checks every accelerometer against what the model predicts from its
+   wheelset's other channels (:mod:`estimator.diagnosis.channels`) and names
+   one that reads against it (a channel fault is outside the catalogue).
 """
 
 from __future__ import annotations
@@ -29,19 +35,19 @@ import logging
 import math
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Sequence
 
 import numpy as np
 import pandas as pd
 
 from estimator.config import EstimatorConfig
+from estimator.diagnosis.channels import channel_check, inconsistent_channels
 from estimator.diagnosis.compare import FieldComparison, compare_with_reference, index_errors
 from estimator.diagnosis.config import DiagnosisConfig
 from estimator.diagnosis.diagnose import FieldDiagnosis, anomalous_stretches, cell_masks, diagnose_field, noise_floor
 from estimator.diagnosis.effects import catalogue
 from estimator.diagnosis.errors import FieldDiagnosisError, ReferenceCoverageError
-from estimator.diagnosis.evidence import Evidence, run_segments, segments_of, third_octave_bands
+from estimator.diagnosis.evidence import Evidence, comb_channels, run_segments, segments_of, third_octave_bands
 from estimator.diagnosis.model import Evaluator
 from estimator.diagnosis.state import FieldState, field_model_for, run_for
 from estimator.diagnosis.transfer import wheelset_blocks
@@ -71,6 +77,8 @@ class FieldDiagnosisResult:
     config: DiagnosisConfig
     estimator_config: EstimatorConfig
     timings_s: dict = field(default_factory=dict)
+    #: channels reading against the model (:func:`~estimator.diagnosis.channels.inconsistent_channels`)
+    channel_check: pd.DataFrame | None = None
 
 
 def _classes_of(fm, kind, orient, role):
@@ -239,13 +247,23 @@ def run_field_diagnosis(runs: Sequence, references: Sequence, site: tuple[float,
                                             f_hi=ecfg.f_hi(qrun.fs), alpha=ecfg.regularisation, df=cfg.transfer_df_hz)
                 names = set(blocks[w].channels)
                 channels.append(chans[chans["name"].isin(names)])
+        masked_acc = np.where(qrun.mask.masked, np.nan, qrun.acceleration) if qrun.mask is not None \
+            else qrun.acceleration
+        for w in qrun.wheelsets:
+            # the estimator's bogie coupling: the other wheelset's channels enter this one's estimate
+            others = [o for o in qrun.wheelsets if o != w]
+            coupled = (others[0], float(est.wheelbase_m)) if ecfg.bogie_coupling and len(others) == 1 else None
             chain = track.chainage_at(qrun.t) + orient.wheelset_offset_sign[w] * est.wheelbase_m / 2
+            # the estimator's comb removes this wheelset's wheel roughness from all it inverts (own and coupled)
+            combed = comb_channels(masked_acc, chain, est.circumference[w].circumference_m, ecfg.comb_revolutions) \
+                if w in est.circumference else None
             speed = np.abs(track.speed_at(qrun.t))
             c_lo, c_hi = float(np.nanmin(chain)), float(np.nanmax(chain))
             rails = tuple(orient.rail_of_side[s] for s in blocks[w].sides)
             got, rej = run_segments(qrun, w, cfg.model, chain, speed, orient.role(w), rails,
                                     segments_of(max(c_lo, ref_lo), min(c_hi, ref_hi), cfg.segment_m), ref, band_table,
-                                    cfg, ecfg, _classes_of(fm, cfg.model, orient, orient.role(w)))
+                                    cfg, ecfg, _classes_of(fm, cfg.model, orient, orient.role(w)), coupled=coupled,
+                                    acceleration=combed)
             segs += got
             rejected += rej
             cal += [run.header.date == cal_date and s.from_m >= lo - 1e-9 and s.to_m <= hi + 1e-9 for s in got]
@@ -259,7 +277,7 @@ def run_field_diagnosis(runs: Sequence, references: Sequence, site: tuple[float,
     timings["evidence"] = time.perf_counter() - t0
     # ---- compare, diagnose
     t0 = time.perf_counter()
-    evaluator = Evaluator(ev, blocks, _base_trackform(fm), ecfg.contact)
+    evaluator = Evaluator(ev, blocks, _base_trackform(fm), ecfg.contact, contact_filter=ecfg.contact_filter)
     nominal = evaluator.errors(FieldState())
     masks = cell_masks(ev, cfg.min_reference_snr_db)
     floor, *_ = noise_floor(ev, nominal, masks, evaluator.inversion_floor(FieldState()))
@@ -296,9 +314,19 @@ def run_field_diagnosis(runs: Sequence, references: Sequence, site: tuple[float,
     if an is not None and len(an):
         spots = "; ".join(f"{r.from_m:g}-{r.to_m:g} m rail {r.rail} {r.band_mm} mm ({r.departure_db:+.1f} dB)"
                           for r in an.head(5).itertuples())
-        diag = dataclasses.replace(diag, verdict=diag.verdict + f". Local departures from the reference in every "
-                                   f"run (nominal estimate, EN 13231-3 windows of {cfg.en_window_m:g} m): {spots}")
+        diag = dataclasses.replace(diag, verdict=diag.verdict + f". Local departures from the reference in (nearly) "
+                                   f"every run (nominal estimate, EN 13231-3 windows of {cfg.en_window_m:g} m): {spots}")
+    # a channel reading against the model and its wheelset's other channels (outside the catalogue: named only)
+    bad = inconsistent_channels(channel_check(evaluator, diag.state))
+    if len(bad):
+        spots = "; ".join(
+            f"{r.channel} (wheelset {r.wheelset}, {r.from_m:g}-{r.to_m:g} m): median ρ {r.median_rho:+.2f} over "
+            f"{r.n_segments} segments, {100 * r.share_negative:.0f} % negative"
+            + (f"; reversing {r.reversal_explains} makes every channel of the wheelset agree (mounted the wrong way "
+               "round or a wrong axis in the sensor table)" if r.reversal_explains else "") for r in bad.itertuples())
+        diag = dataclasses.replace(diag, verdict=diag.verdict + ". Channel check (each accelerometer against what the "
+                                   f"model predicts from its wheelset's other channels): {spots}")
     timings["compare"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_start
     return FieldDiagnosisResult(diag, comparison, idx_err, diag.state, (lo, hi), cal_date, pd.DataFrame(runs_rows),
-                                tuple(rejected), cfg, ecfg, timings)
+                                tuple(rejected), cfg, ecfg, timings, bad)
