@@ -238,6 +238,30 @@ def test_an_estimate_far_from_its_days_others_is_left_out_of_the_day_average():
     assert outlying_estimates(w[(w["run_id"] == "r1") | ((w["run_id"] == "r2") & (w["wheelset"] == 2))], CFG).empty
 
 
+def test_a_run_covering_part_of_a_section_is_judged_on_the_chainage_it_covers():
+    """A section whose corrugation starts at window 10 (10 µm before, 30 µm after): a run whose QC kept only
+    windows 0-7 reads 10 µm there like every other run — not an outlier, although its section level is ~9 dB under
+    the others'; the same partial run at +6 dB on its windows is one (deviation 6 dB on the shared windows)."""
+    from estimator.monitoring.outliers import outlying_estimates
+
+    def level(k):
+        return 10.0 if k < 10 else 30.0
+
+    rng = np.random.default_rng(5)
+    w = []
+    for r in range(5):
+        for ws in (1, 2):
+            w += [rows(f"r{r}", level(k) * 10 ** (0.2 * rng.standard_normal() / 20), window=float(k), wheelset=ws)
+                  for k in range(30)]
+    partial = [rows("p", level(k) * 10 ** (0.1 * rng.standard_normal() / 20), window=float(k)) for k in range(8)]
+    assert outlying_estimates(pd.DataFrame(w + partial), CFG).empty
+    loud = [dict(r, pk_pk_um=r["pk_pk_um"] * 10 ** (6 / 20)) for r in partial]
+    out = outlying_estimates(pd.DataFrame(w + loud), CFG)
+    assert len(out) == 1 and out["run_id"].iloc[0] == "p"
+    assert out["deviation_db"].iloc[0] == pytest.approx(6.0, abs=0.3)
+    assert out["level_db"].iloc[0] == pytest.approx(20 + 6.0, abs=0.3)  # 10 µm + 6 dB = 26 dB re 1 µm
+
+
 def test_the_forecast_interval_holds_the_systematic_level_uncertainty():
     """pk = 10 + 0.5 t, threshold 40 µm: t* = 60 d; a systematic interval of −1/+2 dB scales the amplitude by
     k ∈ [10^(−1/20), 10^(2/20)], so the crossing can be as early as (40/k_hi − 10)/0.5 and as late as
