@@ -10,18 +10,20 @@ average — dominated by its largest member — would follow it.
 The criterion is the consistency checks' (:mod:`~estimator.monitoring.consistency`),
 on the **same chainage**: for each 1 m window an estimate covers, its level
 ``L_i(x)`` (dB re 1 µm) against the median of the **other** estimates of the
-day, section, rail and band at that window, ``d_i(x) = L_i(x) − med_{j≠i}
-L_j(x)``; the estimate's departure is ``D_i = median_x d_i(x)`` over its windows
-with at least :data:`MIN_OTHERS` others (a run that covers a part of the
-section only — a stretch masked by QC — is judged on that part, not on a
-section level of other chainage). It is an outlier when ``|D_i| >
+day, section, rail and band at that window, ``M_i(x) = med_{j≠i} L_j(x)``;
+the estimate's departure is the difference of their energy means over the
+windows it shares with at least :data:`MIN_OTHERS` others, ``D_i = Ē[L_i] −
+Ē[M_i]`` — energy means, because the day's energy average is what a faulty
+estimate would pull (a run that covers a part of the section only — a
+stretch masked by QC — is judged on that part, not on a section level of
+other chainage). It is an outlier when ``|D_i| >
 max(consistency_min_db, consistency_z · s_i)`` with ``s_i = 1.4826 ·
 MAD_{j≠i} D_j`` (the robust scatter of the others' departures; leave-one-out
 so the outlier does not widen its own limit), given at least :data:`MIN_OTHERS`
 other estimates and :data:`MIN_WINDOWS` shared windows. An outlier's windows
 stay in the store (``windows`` table); the day averages leave them out and
 :func:`outlying_estimates`' table says which and why (``level_db`` its energy
-mean over the judged windows, ``others_median_db`` that level minus ``D_i``).
+mean over the judged windows, ``others_median_db`` the others' median's).
 """
 
 from __future__ import annotations
@@ -81,7 +83,8 @@ def outlying_estimates(windows: pd.DataFrame, cfg: MonitoringConfig = Monitoring
             ok = np.isfinite(V[i]) & np.isfinite(med)
             judged.append(ok)
             if ok.sum() >= MIN_WINDOWS:
-                dep[i] = float(np.median(V[i, ok] - med[ok]))
+                # energy means on the shared windows: what the day's energy average would take in from it
+                dep[i] = energy_mean_db(V[i, ok]) - energy_mean_db(med[ok])
         for i in range(V.shape[0]):
             if not np.isfinite(dep[i]):
                 continue
