@@ -129,12 +129,13 @@ class FieldModel:
 
     def coupling(self, tr, tr_other, tf_index: int, distance_m: float) -> np.ndarray:
         """Memoised :func:`estimator.inversion.rail_coupling` on the transfer grid of ``tr``."""
-        key = ("C", tf_index, round(float(distance_m), 4), tr.sides, tr_other.sides, tr.theta, tr_other.theta,
-               tr.freqs_hz.size)
+        # the distance is computed at the key's 0.1 mm (far below what a wheelbase is measured to): the value
+        # then depends on the key alone, not on which run asked first (a batch gives the same numbers in any order)
+        d = round(float(distance_m), 4)
+        key = ("C", tf_index, d, tr.sides, tr_other.sides, tr.theta, tr_other.theta, tr.freqs_hz.size)
         if key not in self.cache:
             tf = self.default_trackform() if tf_index < 0 else self.trackforms()[tf_index][2]
-            self.cache[key] = rail_coupling(tr.freqs_hz, tf, distance_m, tr.sides, tr_other.sides, tr.theta,
-                                            tr_other.theta)
+            self.cache[key] = rail_coupling(tr.freqs_hz, tf, d, tr.sides, tr_other.sides, tr.theta, tr_other.theta)
         return self.cache[key]
 
     def resonances(self, tf_index: int = -1):

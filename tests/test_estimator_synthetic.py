@@ -442,3 +442,21 @@ def test_spatial_step_follows_the_runs_slowest_kept_speed(tmp_path):
     for dx in est.dx_m.values():
         # a step of the 1-2-2.5-5 series (neighbours at most 2x apart) below λ_min/3, coarser than the gate's 2.5 mm
         assert est.lambda_min_m / 6.05 < dx <= est.lambda_min_m / 3 and dx > 0.0025 * 1.5
+
+
+def test_memoised_rail_coupling_depends_on_its_key_only():
+    """Two runs whose measured wheelbases share the memo's 0.1 mm key get the same coupling whichever asks first
+    (a batch's numbers must not depend on the order its runs reach a worker)."""
+    from estimator import EstimatorConfig, prepare
+    from estimator.inversion import model_channels
+
+    chans = wheelset_sensors(sensor_table(), 1)
+    rows, _ = model_channels("vertical", chans)
+    sub = chans.loc[rows].reset_index(drop=True)
+    values = []
+    for first, second in ((2.10001, 2.10004), (2.10004, 2.10001)):
+        fm = prepare(control_model(), sensor_table(), config=EstimatorConfig())
+        tr = fm.transfer("vertical", sub, 1000.0, -1, (0.0, 0.0))
+        fm.coupling(tr, tr, -1, first)
+        values.append(fm.coupling(tr, tr, -1, second))
+    assert np.array_equal(values[0], values[1])
