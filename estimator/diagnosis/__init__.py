@@ -19,14 +19,16 @@ from estimator.diagnosis.calibration import calibrated_field_model, load_calibra
 from estimator.diagnosis.config import DiagnosisConfig
 from estimator.diagnosis.diagnose import CandidateFit, FieldDiagnosis, diagnose_field
 from estimator.diagnosis.effects import (ContactAngle, ContactStiffness, DiscreteSupports, FieldEffect, Parameter,
-                                        SensorOffset, TrackformEffect, WheelRoughness, catalogue)
+                                        SensorOffset, TrackformEffect, TrackformStretch, WheelRoughness,
+                                        catalogue)
 from estimator.diagnosis.errors import (CalibrationFileError, DiagnosisConfigError, FieldDiagnosisError,
                                         ReferenceCoverageError)
 from estimator.diagnosis.state import FieldState, field_model_for, run_for
 from estimator.diagnosis.workflow import FieldDiagnosisResult, run_field_diagnosis
 
 __all__ = ["DiagnosisConfig", "CandidateFit", "FieldDiagnosis", "diagnose_field", "FieldEffect", "Parameter",
-           "TrackformEffect", "DiscreteSupports", "ContactAngle", "SensorOffset", "ContactStiffness",
+           "TrackformEffect", "TrackformStretch",
+           "DiscreteSupports", "ContactAngle", "SensorOffset", "ContactStiffness",
            "WheelRoughness", "catalogue", "FieldState", "field_model_for", "run_for", "FieldDiagnosisResult",
            "run_field_diagnosis", "calibrated_field_model", "load_calibration", "save_calibration",
            "CalibrationFileError", "DiagnosisConfigError", "FieldDiagnosisError", "ReferenceCoverageError"]

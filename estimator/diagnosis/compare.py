@@ -79,12 +79,13 @@ def _pool(df: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
 
 
 def index_errors(estimate, aligned: dict, site: tuple[float, float], calibration_day: bool, est_cfg,
-                 window_m: float = 1.0, focus=()) -> pd.DataFrame:
+                 window_m: float = 1.0, focus=(), stretches=()) -> pd.DataFrame:
     """EN 13231-3 band-index error of one run per ``set`` (calibration site / validation), wheelset, rail, band.
 
     On the calibration day the site calibrates and the rest validates; on another day everything validates.
     ``focus``: stretches ``(from, to)`` where accepted effects act; on another day they also form the set
-    ``validation where the effects act``.
+    ``validation where the effects act``; ``stretches``: stretches given by the user, each its own
+    ``validation stretch`` rows on another day.
     """
     from estimator.reference import compare_bands, reference_indexes
 
@@ -98,7 +99,8 @@ def index_errors(estimate, aligned: dict, site: tuple[float, float], calibration
                   ("validation", max(lo, site[1]), hi)]
     else:
         pieces = [("validation", lo, hi)] + [("validation where the effects act", max(lo, a), min(hi, b))
-                                             for a, b in focus]
+                                             for a, b in focus] + [("validation stretch", max(lo, a), min(hi, b))
+                                                                   for a, b in stretches]
     parts = []
     for name, a, b in pieces:
         if b - a < 2 * window_m:

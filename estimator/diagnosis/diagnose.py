@@ -21,7 +21,10 @@ state, and the catalogue is fitted again on top of it — until none passes
 
 Fit: a grid over the bounds (9 values for one parameter, 5 × 5 for two: in
 log for the factors) finds the basin, Nelder–Mead on the unit cube polishes
-it. Uncertainty (1σ) from the curvature of ``N ln E²`` at the optimum (a
+it; an effect with ``n_grid`` set grids only its leading parameters (a
+stretch's two factors) and starts the others at their nominal values (its
+ends where the evidence located it), Nelder–Mead then moves all of them.
+Uncertainty (1σ) from the curvature of ``N ln E²`` at the optimum (a
 Gaussian likelihood whose variance is estimated: ``Δ(N ln E²) = 1`` at one
 σ). A parameter whose move by ± a quarter of its search span changes ``E``
 by less than ``undetermined_de`` is *undetermined*. Candidates are fitted in
@@ -288,14 +291,17 @@ def _fit(effect: FieldEffect) -> CandidateFit:
 
     e0, n = _rms(pb.base_errs, pb.masks, pb.cal)
     if params:
-        g = _GRID.get(len(params), 3)
-        axes = np.meshgrid(*[np.linspace(0, 1, g)] * len(params), indexing="ij")
-        pts = np.stack([a.ravel() for a in axes], axis=1)
+        # the start grid covers the leading ``n_grid`` parameters (all by default); the others start at nominal
+        ng = min(getattr(effect, "n_grid", len(params)), len(params))
+        g = _GRID.get(ng, 3)
+        axes = np.meshgrid(*[np.linspace(0, 1, g)] * ng, indexing="ij")
+        rest = [p.to_unit(p.nominal) for p in params[ng:]]
+        pts = np.stack([a.ravel() for a in axes] + [np.full(axes[0].size, r) for r in rest], axis=1)
         vals = np.array([err(p) for p in pts])
         u0 = pts[int(np.argmin(vals))]
         res = scipy.optimize.minimize(lambda u: err(np.clip(u, 0, 1)), u0, method="Nelder-Mead",
-                                      options={"maxfev": _NM_FEV, "xatol": 2e-3, "fatol": 1e-4,
-                                               "initial_simplex": _simplex(u0, 0.5 / (g - 1))})
+                                      options={"maxfev": _NM_FEV * (1 + len(params) - ng), "xatol": 2e-3,
+                                               "fatol": 1e-4, "initial_simplex": _simplex(u0, 0.5 / (g - 1))})
         u = np.clip(res.x, 0, 1) if res.fun < vals.min() else u0
         e1 = min(float(res.fun), float(vals.min()))
     else:
@@ -342,7 +348,7 @@ def _fit(effect: FieldEffect) -> CandidateFit:
     v1, _ = _rms(v_errs, pb.masks, vsel)
     floor = cfg_floor(pb)
     significant = dbic < -cfg.bic_threshold and e1 <= (1 - cfg.min_reduction) * e0 and e0 > cfg.noise_margin * floor
-    plausible = all(p.is_plausible(best[p.name]) for p in params) and not at_bound
+    plausible = all(p.is_plausible(best[p.name]) for p in params) and not at_bound and effect.plausible(best)
     validated = nv > 0 and v1 <= (1 - cfg.validation_min_reduction) * v0
     c_errs = _errors_with(pb, effect, best, pb.cal)
     fixes = _fixes(pb, pb.base_errs, c_errs, [i for i in pb.cal if effect.acts_on(segs[i])])

@@ -11,7 +11,8 @@ Adding an effect to the catalogue is one such class and one line in
 effect                 physical change (thesis)                                     parameters
 =====================  ==========================================================  =====================
 ``trackform``          the section's pad/subplate stiffness and damping (rail       stiffness factor,
-                       receptance ``A_R``, §2.4, eq. 2.22)                          damping factor
+                       receptance ``A_R``, §2.4, eq. 2.22); on a stretch the        damping factor (and
+                       evidence located, its ends are fitted too                    start, end)
 ``discrete_supports``  the rail on discrete sleepers instead of a continuous        (the model switch)
                        support (§2.4), at the line's sleeper spacing
 ``contact_angle``      the contact angles γ_L, γ_R of one curve for the leading     γ on rail L, on R
@@ -33,7 +34,8 @@ import numpy as np
 
 from estimator.diagnosis.state import FieldState, TrackformChange
 
-__all__ = ["Parameter", "FieldEffect", "TrackformEffect", "DiscreteSupports", "ContactAngle", "SensorOffset",
+__all__ = ["Parameter", "FieldEffect", "TrackformEffect", "TrackformStretch",
+           "DiscreteSupports", "ContactAngle", "SensorOffset",
            "ContactStiffness", "WheelRoughness", "EFFECT_NAMES", "catalogue"]
 
 
@@ -51,9 +53,11 @@ class Parameter:
     #: a bound that is a physical limit (a contact angle of 0: tread contact) and not the search's edge: a value
     #: there is a legitimate fit, not a sign that the effect wants more than the search allows
     physical_lo: bool = False
+    #: the same for the upper bound (a stretch's end at the last evidence: the data cannot place it further)
+    physical_hi: bool = False
 
     def at_bound(self, u: float) -> bool:
-        return (u < 0.01 and not self.physical_lo) or u > 0.99
+        return (u < 0.01 and not self.physical_lo) or (u > 0.99 and not self.physical_hi)
 
     def grid(self, n: int) -> np.ndarray:
         if self.log:
@@ -100,6 +104,10 @@ class FieldEffect:
     def acts_on(self, seg) -> bool:
         return True
 
+    def plausible(self, values: dict) -> bool:
+        """A check across parameters beyond each one's plausible range (default: none)."""
+        return True
+
     def apply(self, state: FieldState, values: dict) -> FieldState:
         raise NotImplementedError
 
@@ -120,14 +128,66 @@ class TrackformEffect(FieldEffect):
     def where(self) -> str:
         return f"section {self.section} {self.from_m:g}-{self.to_m:g} m"
 
+    def extent(self, values: dict) -> tuple[float, float]:
+        """The stretch ``(from, to)`` [m] the change covers with these values."""
+        return self.from_m, self.to_m
+
     def acts_on(self, seg) -> bool:
-        return self.from_m <= seg.centre_m <= self.to_m
+        # any overlap: a segment partly covered is inverted part by part (Evaluator.pieces)
+        return seg.from_m < self.to_m and seg.to_m > self.from_m
 
     def apply(self, state, values):
         k, c = values["stiffness_factor"], values.get("damping_factor", 1.0)
+        a, b = self.extent(values)
         return state.with_trackform_change(TrackformChange(
-            self.from_m, self.to_m, (("pad_stiffness", k), ("subplate_stiffness", k), ("pad_damping", c),
-                                     ("subplate_damping", c))))
+            a, b, (("pad_stiffness", k), ("subplate_stiffness", k), ("pad_damping", c), ("subplate_damping", c))))
+
+
+@dataclass(frozen=True)
+class TrackformStretch(TrackformEffect):
+    """A trackform change where the evidence says the track differs, its two ends fitted with the factors.
+
+    ``from_m``–``to_m`` is the run of segments that stand out
+    (:func:`estimator.diagnosis.diagnose.anomalous_stretches`); a segment the change covers only in part may
+    not stand out, so each true end lies within one segment (``resolution_m``) of it: the fitted start is
+    searched on ``from_m ± resolution_m``, the end on ``to_m ± resolution_m`` (an end at its search bound is
+    implausible: the change reaches beyond what the evidence located). A segment partly covered weighs the
+    changed and the nominal inversion by their shares of its length (:meth:`Evaluator.pieces`), which is what
+    resolves an end inside a segment. The two ends count in the criterion's ``k`` (4 numbers against a line
+    section's 2). A fitted stretch shorter than ``min_length_m`` is a defect, not a trackform (implausible).
+    """
+
+    resolution_m: float = 24.0
+    min_length_m: float = 40.0
+    #: calibration evidence beyond the stretch's start / end (within one segment); without it the data cannot
+    #: place that end further out: its search stops at the stretch's edge, which is then a legitimate value
+    evidence_before: bool = True
+    evidence_after: bool = True
+    #: the leading parameters the start grid covers (the factors; the ends start at the evidence's)
+    n_grid = 2
+
+    def __post_init__(self):
+        r = self.resolution_m
+        a, b = self.from_m, self.to_m
+        ends = (Parameter("from_m", a - r if self.evidence_before else a, a + r, a, unit="m",
+                          physical_lo=not self.evidence_before),
+                Parameter("to_m", b - r, b + r if self.evidence_after else b, b, unit="m",
+                          physical_hi=not self.evidence_after))
+        object.__setattr__(self, "parameters", TrackformEffect.parameters + ends)
+
+    @property
+    def where(self) -> str:
+        return f"{self.section}, ends fitted within ±{self.resolution_m:g} m"
+
+    def extent(self, values: dict) -> tuple[float, float]:
+        return values.get("from_m", self.from_m), values.get("to_m", self.to_m)
+
+    def acts_on(self, seg) -> bool:
+        return seg.from_m < self.to_m + self.resolution_m and seg.to_m > self.from_m - self.resolution_m
+
+    def plausible(self, values: dict) -> bool:
+        a, b = self.extent(values)
+        return b - a >= self.min_length_m
 
 
 @dataclass(frozen=True)
@@ -248,7 +308,6 @@ def catalogue(evidence, line, channels, *, names=None, min_section_m: float = 40
     if "trackform" in names and (line is not None or stretches):
         line = line if line is not None else type("_NoLine", (), {"sections": (), "trackforms": ()})()
         places = [(s.id, s.from_m, s.to_m) for s in tuple(line.sections) + tuple(line.trackforms)]
-        places += [(f"{a:g}-{b:g} m (from the evidence)", a, b) for a, b in stretches]
         seen = set()
         for sid, a, b in places:
             if (a, b) in seen:
@@ -256,6 +315,15 @@ def catalogue(evidence, line, channels, *, names=None, min_section_m: float = 40
             seen.add((a, b))
             if b - a >= min_section_m and any(a <= s.centre_m <= b for s in segs):
                 out.append(TrackformEffect(from_m=a, to_m=b, section=str(sid)))
+        # where the evidence located a change: its ends are fitted within one segment (the evidence's resolution)
+        res = float(np.median([s.to_m - s.from_m for s in segs])) if segs else 0.0
+        cal = [s for s, c in zip(segs, evidence.calibration) if c]
+        for a, b in stretches:
+            if b - a >= min_section_m and any(a <= s.centre_m <= b for s in segs):
+                out.append(TrackformStretch(
+                    from_m=a, to_m=b, section=f"{a:g}-{b:g} m (from the evidence)", resolution_m=res,
+                    min_length_m=min_section_m, evidence_before=any(s.from_m < a and s.to_m > a - res for s in cal),
+                    evidence_after=any(s.to_m > b and s.from_m < b + res for s in cal)))
     if "discrete_supports" in names:
         out.append(DiscreteSupports())
     if "contact_angle" in names:

@@ -101,14 +101,36 @@ class Evaluator:
     def stiffness(self, state: FieldState) -> float:
         return float(self._hertz(state).stiffness)
 
-    def transfer(self, state: FieldState, seg) -> np.ndarray:
+    def pieces(self, state: FieldState, seg) -> list[tuple[float, float]]:
+        """``(share, chainage)`` of the parts of the segment under one trackform each.
+
+        A trackform change whose end falls inside the segment splits it: the estimator (its line with the
+        change) inverts each part with its own trackform, and the segment's band variance is the mean over its
+        length of the parts' (a Welch spectrum is the mean of its windows' periodograms), so each part weighs
+        by its share of the segment's length. The part's accelerations are the segment's (the evidence does
+        not resolve them further). ``chainage`` is the part's middle (where its trackform is read).
+        """
+        a, b = seg.from_m, seg.to_m
+        cuts = sorted({a, b} | {x for ch in state.trackform_changes for x in (ch.from_m, ch.to_m) if a < x < b})
+        if len(cuts) == 2:
+            return [(1.0, seg.centre_m)]
+        out: dict = {}
+        for lo, hi in zip(cuts[:-1], cuts[1:]):
+            x = 0.5 * (lo + hi)
+            tf = self.trackform_at(state, x)
+            w, x0 = out.get(tf, (0.0, x))
+            out[tf] = (w + (hi - lo) / (b - a), x0)
+        return list(out.values())
+
+    def transfer(self, state: FieldState, seg, at_m: float | None = None) -> np.ndarray:
         """The estimator's map from the segment's channels (``seg.S``'s rows) to the irregularity per side.
 
         ``(n_f, sides, m)``, or ``(n_f, sides, m + m')`` with the other wheelset's channels when the segment
         holds them (the rail coupling: :meth:`~estimator.diagnosis.transfer.WheelsetBlocks.coupled_transfer`).
+        ``at_m``: the chainage whose trackform it uses (default the segment's centre; :meth:`pieces`).
         """
         bl = self.blocks[seg.wheelset]
-        tf = self.trackform_at(state, seg.centre_m)
+        tf = self.trackform_at(state, seg.centre_m if at_m is None else at_m)
         th = self.theta_at(state, seg)
         th = (round(th[0], 6), round(th[1], 6))
         k = self.stiffness(state)
@@ -150,8 +172,11 @@ class Evaluator:
             used = np.flatnonzero(W.any(axis=1))
             self._memo[key] = (used, W[used])
         used, W = self._memo[key]
-        T = interp_transfer(self.transfer(state, seg), bl.df, seg.f[used])
-        psd = np.sum((T @ seg.S[used]) * np.conj(T), axis=-1).real  # diag(T S Tᴴ), (n_f, sides)
+        parts = self.pieces(state, seg)
+        psd = 0.0
+        for share, x in parts:
+            T = interp_transfer(self.transfer(state, seg, x), bl.df, seg.f[used])
+            psd = psd + share * np.sum((T @ seg.S[used]) * np.conj(T), axis=-1).real  # diag(T S Tᴴ), (n_f, sides)
         if self.contact_filter:
             a = round(self.semi_axis(state), 9)
             gkey = ("gain", si, a)
@@ -159,6 +184,8 @@ class Evaluator:
                 self._memo[gkey] = contact_gain(seg.f[used] / seg.speed_m_s, a) ** 2
             psd = psd * self._memo[gkey][:, None]
         out = psd.T @ W
+        if len(parts) > 1:
+            out = out * self._mixture_correction(state, si, parts)
         for w, side, level, slope in state.wheel_roughness:
             if w != seg.wheelset:
                 continue
@@ -166,6 +193,57 @@ class Evaluator:
             lam = bt[seg.bands, 0]
             wheel = 1e-12 * 10 ** ((level + slope * np.log2(lam / 0.1)) / 10)
             out[i] = np.maximum(out[i] - wheel, MIN_LEVEL_SHARE * out[i])
+        return out
+
+    def _mixture_correction(self, state: FieldState, si: int, parts) -> np.ndarray:
+        """Per rail and band: what the part-by-part inversion gives over what the shares' mix of it gives.
+
+        The segment's spectrum mixes its parts', ``S = Σ_y w_y H_y P H_yᴴ``, and each part's inversion ``T_x``
+        sees all of it: ``Σ_x w_x T_x S T_xᴴ`` carries the cross terms ``T_x H_y`` (x ≠ y), a bias that grows
+        with the change (a stiffness ×2.5 reads +2 dB at half cover) and that the estimator, inverting each
+        part's own accelerations, does not make. With the reference ``P`` (flat in each band, as in
+        :meth:`inversion_floor`) and the parts' forward maps, the ratio of the part-by-part
+        ``Σ_x w_x T_x H_x P H_xᴴ T_xᴴ`` to the mix ``Σ_x w_x Σ_y w_y T_x H_y P H_yᴴ T_xᴴ`` removes it (1 at
+        full or no cover: the objective stays continuous as an end crosses a segment boundary). The own
+        wheelset's channels only (the rail coupling's part is a small term of both).
+        """
+        seg = self.evidence.segments[si]
+        bl = self.blocks[seg.wheelset]
+        bt = self.evidence.band_table
+        th = self.theta_at(state, seg)
+        offs = np.array([state.offset_of(c) for c in bl.channels])
+        k = self.stiffness(state)
+        key = ("mix", si, tuple((round(w, 9), self.trackform_at(state, x)) for w, x in parts),
+               (round(th[0], 6), round(th[1], 6)), round(k, 3), offs.tobytes(), state.supports)
+        if key in self._memo:
+            return self._memo[key]
+        # the blocks' frequency lines inside the segment's bands (the products below only there)
+        lines = np.flatnonzero((bl.f >= seg.speed_m_s / bt[seg.bands, 2].max())
+                               & (bl.f < seg.speed_m_s / bt[seg.bands, 1].min()))
+        Ts, Hs = [], []
+        for _, x in parts:
+            tf = self.trackform_at(state, x)
+            hk = ("fwd", seg.wheelset, tf, (round(th[0], 6), round(th[1], 6)), round(k, 3), offs.tobytes(),
+                  state.supports)
+            if hk not in self._memo:
+                self._memo[hk] = bl.forward(tf, th, k, offsets=offs, supports=state.supports)
+            Hs.append(self._memo[hk][lines])
+            Ts.append(self.transfer(state, seg, x)[lines, :, :len(bl.channels)])
+        w = np.array([p[0] for p in parts])
+        exact = sum(w[i] * np.abs(np.einsum("fim,fmj->fij", Ts[i], Hs[i])) ** 2 for i in range(len(parts)))
+        mixed = sum(w[i] * w[j] * np.abs(np.einsum("fim,fmj->fij", Ts[i], Hs[j])) ** 2
+                    for i in range(len(parts)) for j in range(len(parts)))
+        f = bl.f[lines]
+        out = np.ones((len(seg.rails), seg.bands.size))
+        for kb, b in enumerate(seg.bands):
+            sel = (f >= seg.speed_m_s / bt[b, 2]) & (f < seg.speed_m_s / bt[b, 1])
+            p = np.nan_to_num(seg.ref_var[:, kb])
+            if not sel.any() or not p.any():
+                continue
+            num, den = exact[sel].sum(axis=0) @ p, mixed[sel].sum(axis=0) @ p
+            good = den > 0
+            out[good, kb] = num[good] / den[good]
+        self._memo[key] = out
         return out
 
     def inversion_floor(self, state: FieldState) -> list[np.ndarray]:

@@ -123,7 +123,7 @@ def _effect_stretches(diag, line, site) -> list[tuple[float, float]]:
     for c in diag.accepted:
         e = c.effect
         if isinstance(e, TrackformEffect):
-            out.append((e.from_m, e.to_m))
+            out.append(e.extent(c.params))
         elif isinstance(e, ContactAngle) and line is not None:
             cv = next((k for k in line.curves if k.id == e.curve), None)
             if cv is not None:
@@ -136,7 +136,7 @@ def _effect_stretches(diag, line, site) -> list[tuple[float, float]]:
 def run_field_diagnosis(runs: Sequence, references: Sequence, site: tuple[float, float], model, sensors, *,
                         line=None, trackform: Trackform | None = None, config: DiagnosisConfig | None = None,
                         estimator_config: EstimatorConfig | None = None, calibration_date: str | None = None,
-                        direction: str | None = None) -> FieldDiagnosisResult:
+                        direction: str | None = None, validation_stretches: Sequence = ()) -> FieldDiagnosisResult:
     """Diagnose the estimator's model on a calibration site (module docstring).
 
     Parameters
@@ -150,6 +150,9 @@ def run_field_diagnosis(runs: Sequence, references: Sequence, site: tuple[float,
     model, sensors, line, trackform : as :func:`estimator.prepare`
     calibration_date : str, optional
         The survey day whose runs calibrate (default: the first reference's day); other days validate.
+    validation_stretches : sequence of (float, float)
+        Stretches ``(from, to)`` [m] on which the EN 13231-3 band-index error of the other days is also
+        reported (set ``validation stretch``), e.g. where a practitioner knows the track was re-laid.
 
     Raises
     ------
@@ -169,6 +172,10 @@ def run_field_diagnosis(runs: Sequence, references: Sequence, site: tuple[float,
     if hi - lo > MAX_SITE_M or hi - lo < cfg.segment_m:
         raise FieldDiagnosisError(f"site {lo:g}-{hi:g} m must be between one segment ({cfg.segment_m:g} m) and "
                                   f"{MAX_SITE_M:g} m long")
+    stretches = tuple((float(a), float(b)) for a, b in validation_stretches)
+    bad = [st for st in stretches if not (math.isfinite(st[0]) and math.isfinite(st[1]) and st[1] > st[0])]
+    if bad:
+        raise FieldDiagnosisError(f"validation stretches must be FROM < TO in m, got {bad!r}")
     if not runs or len(runs) > MAX_RUNS:
         raise FieldDiagnosisError(f"give 1..{MAX_RUNS} runs, got {len(runs)}")
     if not references:
@@ -296,7 +303,7 @@ def run_field_diagnosis(runs: Sequence, references: Sequence, site: tuple[float,
         if ref is None:
             continue
         is_cal = run.header.date == cal_date
-        nominal_t = index_errors(est, ref, (lo, hi), is_cal, ecfg, cfg.en_window_m, focus)
+        nominal_t = index_errors(est, ref, (lo, hi), is_cal, ecfg, cfg.en_window_m, focus, stretches)
         if is_cal:
             cal_tables.append(nominal_t)
         rows.append(nominal_t.assign(stage="nominal", run_id=run.run_id, date=run.header.date))
@@ -304,7 +311,7 @@ def run_field_diagnosis(runs: Sequence, references: Sequence, site: tuple[float,
             after_t = nominal_t
         else:
             after = estimate_run(run_for(run, diag.state), fm_cal)
-            after_t = index_errors(after, ref, (lo, hi), is_cal, ecfg, cfg.en_window_m, focus)
+            after_t = index_errors(after, ref, (lo, hi), is_cal, ecfg, cfg.en_window_m, focus, stretches)
         rows.append(after_t.assign(stage="calibrated", run_id=run.run_id, date=run.header.date))
     idx_err = pd.concat(rows, ignore_index=True) if rows else pd.DataFrame()
     comparison = compare_with_reference([e for run, e in items if run.header.date == cal_date], aligned, ev, nominal,
