@@ -18,6 +18,8 @@ from railmodal.arguments import bounded_float, bounded_int, existing_file, outpu
 __all__ = ["add_field_diagnose_command", "MAX_RUN_FILES"]
 
 MAX_RUN_FILES = 200
+#: stretches a diagnosis reports the band-index error on, besides the site and the effects' own
+MAX_VALIDATION_STRETCHES = 20
 
 
 def _cmd_diagnose(args: argparse.Namespace) -> int:
@@ -36,6 +38,12 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     lo, hi = args.site
     if not hi > lo:
         raise ValueError(f"--site FROM TO must have FROM < TO, got {lo:g} {hi:g}")
+    stretches = [tuple(v) for v in (args.validation_stretch or [])]
+    if len(stretches) > MAX_VALIDATION_STRETCHES:
+        raise ValueError(f"--validation-stretch: at most {MAX_VALIDATION_STRETCHES}, got {len(stretches)}")
+    for a, b in stretches:
+        if not b > a:
+            raise ValueError(f"--validation-stretch FROM TO must have FROM < TO, got {a:g} {b:g}")
     effects = None
     if args.effects:
         effects = tuple(e.strip() for e in args.effects.split(",") if e.strip())
@@ -52,7 +60,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     res = run_field_diagnosis(list(args.runs), list(args.reference), (lo, hi), args.model, args.sensors,
                               line=args.line, trackform=trackform, config=cfg, estimator_config=ecfg,
                               calibration_date=args.calibration_date,
-                              direction=args.direction)
+                              direction=args.direction, validation_stretches=stretches)
     with staged_output(args.out) as tmp:
         files = write_field_diagnosis(res, tmp, model_file=args.model)
     d = res.diagnosis
@@ -84,6 +92,12 @@ def add_field_diagnose_command(sub) -> None:
     p.add_argument("--sensors", required=True, type=existing_file("--sensors", "sensor table"))
     p.add_argument("--line", default=None, type=existing_file("--line", "line description (line.json)"))
     p.add_argument("--trackform", default=None, type=existing_file("--trackform", "trackform (TOML/JSON)"))
+    p.add_argument("--validation-stretch", nargs=2, action="append", metavar=("FROM", "TO"),
+                   type=bounded_float("--validation-stretch", -1e7, 1e7, unit="m"),
+                   help="a stretch [m] on which the EN 13231-3 band-index error of the days other than the "
+                        "calibration day is also reported (e.g. where the track is known to have changed); "
+                        "repeatable, at most "
+                        f"{MAX_VALIDATION_STRETCHES}")
     p.add_argument("--calibration-date", default=None,
                    help="survey day whose runs calibrate (default: the first reference's); other days validate")
     p.add_argument("--direction", choices=("forward", "backward"), default=None)

@@ -43,7 +43,8 @@ def test_field_diagnose_command_on_a_nominal_site(campaign, capsys):
     out = tmp / "diag"
     code = main(["field", "diagnose", "--runs", *map(str, runs), "--reference", str(ref), "--site", "96", "216",
                  "--model", str(model), "--sensors", str(tmp / "sensors.csv"), "--effects",
-                 "sensor_offset,contact_stiffness,contact_angle", "--workers", "2", "--out", str(out)])
+                 "sensor_offset,contact_stiffness,contact_angle", "--workers", "2", "--validation-stretch", "120",
+                 "180", "--out", str(out)])
     text = capsys.readouterr()
     assert code == 0, text.err
     doc = json.loads((out / "field_diagnosis.json").read_text())
@@ -57,6 +58,9 @@ def test_field_diagnose_command_on_a_nominal_site(campaign, capsys):
     en = doc["comparison"]["en_bands"]
     assert en and max(r["rms_error_db"] for r in en) < 4.0
     assert doc["noise_floor_db"]["total"] > 0
+    # a named validation stretch is reported for the days that do not calibrate: both runs here are of the
+    # calibration day, so it has no rows (the other-day case: tests/test_field_diagnosis_line.py)
+    assert not any(r["set"] == "validation stretch" for r in doc["band_index_errors"])
     assert (out / "report.html").read_text().count("Field diagnosis") >= 1
     cal = json.loads((out / "calibrated_model" / "field_calibration.json").read_text())
     assert cal["version"].endswith("+nominal") and (out / "calibrated_model" / "hybrid_model.npz").is_file()
@@ -72,6 +76,8 @@ def test_field_diagnose_rejects_bad_arguments_before_work(campaign, capsys):
     assert "--site FROM TO" in capsys.readouterr().err
     assert main(base + ["--site", "100", "200", "--effects", "trackform,magic"]) == 1
     assert "magic" in capsys.readouterr().err
+    assert main(base + ["--site", "100", "200", "--validation-stretch", "150", "120"]) == 1
+    assert "--validation-stretch FROM TO" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(base[:-2] + ["--site", "100", "200", "--out", str(out), "--max-effects", "9"])
     assert "--max-effects" in capsys.readouterr().err
