@@ -327,6 +327,12 @@ def _stretches(fm: FieldModel, lo: float, hi: float) -> list[tuple[str, float, f
     return out
 
 
+def _nothing_estimated(run: Run, skipped: list[str]) -> NoValidDataError:
+    why = "; ".join(skipped) or "every sample masked"
+    return NoValidDataError(f"{run.source}: nothing could be estimated ({why}; masked share "
+                            f"{100 * run.masked_share['run']:.0f} %)")
+
+
 # --------------------------------------------------------------------------- the workflow
 def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, format: str | None = None
                  ) -> FieldEstimate:
@@ -406,6 +412,8 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
         plans_by_w[w], edges[w] = plans, edge_w
     kinds_of = {w: {kind for kind, *_ in plans} for w, plans in plans_by_w.items()}
     coupling = cfg.bogie_coupling and len(plans_by_w) == 2
+    # with a given wheelbase the uncoupled pass would only be thrown away: a coupled pair is inverted once, below
+    defer = coupling and cfg.wheelbase_m is not None
     for w, plans in plans_by_w.items():
         for kind, sub, classes, transfers in plans:
             conds = []
@@ -413,8 +421,8 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
                 conds.append(condition_by_band(tr).assign(trackform=t, theta_L_deg=math.degrees(th[0]),
                                                           theta_R_deg=math.degrees(th[1])))
             conditioning[(w, kind)] = pd.concat(conds, ignore_index=True)
-            if coupling and cfg.wheelbase_m is not None and all(kind in k for k in kinds_of.values()):
-                continue  # a given wheelset and a coupled pair: only the coupled inversion below is needed
+            if defer and all(kind in k for k in kinds_of.values()):
+                continue
             idx = sub["row"].to_numpy(int)
             valid = ~run.mask.masked[idx].any(axis=0)
             ti = invert(run.acceleration[idx], run.t0, fs, valid, transfers, [c[2] for c in classes],
@@ -423,9 +431,8 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
                 skipped.append(f"wheelset {w}, {kind}: no valid stretch long enough after quality control")
                 continue
             tis[(w, kind)] = ti
-    if not tis and not (coupling and cfg.wheelbase_m is not None):
-        raise NoValidDataError(f"{run.source}: nothing could be estimated ({'; '.join(skipped) or 'every sample masked'};"
-                               f" masked share {100 * run.masked_share['run']:.0f} %)")
+    if not tis and not defer:
+        raise _nothing_estimated(run, skipped)
     timings["inversion"] = time.perf_counter() - t0
     steps.append(f"inverted {len(tis)} wheelset/model combination(s) in {f_lo:g}-{f_hi:g} Hz "
                  f"(Tikhonov alpha {cfg.regularisation:g})")
@@ -454,7 +461,7 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
             for kind, sub, classes, transfers in plans_by_w.get(w, []):
                 idx = sub["row"].to_numpy(int)
                 valid = ~run.mask.masked[idx].any(axis=0)
-                deferred = cfg.wheelbase_m is not None and kind in other
+                deferred = defer and kind in other
                 if kind in other and ((w, kind) in tis and (wo, kind) in tis or deferred):
                     sub_o = other[kind]
                     trs_o = [fm.transfer(kind, sub_o.drop(columns="row"), fs, t, th) for t, th, _ in classes]
@@ -479,9 +486,7 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
                      f"added for {', '.join(coupled) or 'none'}")
         timings["coupling"] = time.perf_counter() - t0
         if not tis:
-            why = "; ".join(skipped) or "every sample masked"
-            raise NoValidDataError(f"{run.source}: nothing could be estimated ({why}; masked share "
-                                   f"{100 * run.masked_share['run']:.0f} %)")
+            raise _nothing_estimated(run, skipped)
     # ---- space, comb, indexes per wheelset
     t0 = time.perf_counter()
     profiles: dict[tuple[int, str], ProfileEstimate] = {}
