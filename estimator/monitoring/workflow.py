@@ -544,12 +544,17 @@ def ingest(runs: Sequence, spec: IngestSpec, store, *, executor=None,
         else:
             pending[d] = list(ps)
 
-    def references(pending: dict[str, list[str]]) -> dict[str, str]:
-        """Process each day's candidates in turn until one succeeds; the reference run's path per day."""
+    def references(pending: dict[str, list[str]], extra: Mapping[str, dict] | None = None) -> dict[str, str]:
+        """Process each day's candidates in turn until one succeeds; the reference run's path per day.
+
+        ``extra``: keyword arguments of :func:`process_run` per candidate path (e.g. a known wheelbase).
+        """
         chosen = {}
+        extra = extra or {}
         while pending:
             # the reference (the day's most trusted run) is always one of the uncertainty runs
-            calls = [((pending[d][0], spec, None), {"uncertainty": unc_k > 0}) for d in pending]
+            calls = [((pending[d][0], spec, None), {"uncertainty": unc_k > 0, **extra.get(pending[d][0], {})})
+                     for d in pending]
             dates = list(pending)
             for i, res in ex.run(process_run, calls):
                 d = dates[i]
@@ -606,14 +611,8 @@ def ingest(runs: Sequence, spec: IngestSpec, store, *, executor=None,
             ps = sorted(p for p in retry_wb if headers[p]["date"] == d)
             if d not in refs:  # every candidate reference of the day failed: the first retried run is the reference
                 p0 = ps.pop(0)
-                (_, res), = ex.run(process_run, [((p0, spec, None), {"uncertainty": unc_k > 0,
-                                                                         "wheelbase": retry_wb[p0]})])
-                r = _as_result(res, p0, ctx, batch_line)
-                record(r)
-                if not (r.ok and r.reference is not None):
+                if d not in references({d: [p0]}, {p0: {"wheelbase": retry_wb[p0]}}):
                     continue
-                refs[d] = r.reference
-                st.write_reference(r.line, d, ctx.info.model_hash, r.reference.frame(), r.reference.meta())
             shared = ex.share(refs[d])
             calls = [((p, spec, shared), {"wheelbase": retry_wb[p]}) for p in ps]
             for i, res in ex.run(process_run, calls):
