@@ -29,13 +29,21 @@ __all__ = ["channel_check", "inconsistent_channels", "RHO_REVERSED"]
 RHO_REVERSED = 0.3
 
 
-def _rho(S: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """ρ of every channel (module docstring) from spectra ``S`` (n_f, m, m) and the map ``B`` (n_f, m, n)."""
-    m = S.shape[1]
-    out = np.full(m, np.nan)
+def _predictors(B: np.ndarray) -> list[tuple[list[int], np.ndarray]]:
+    """Per channel ``k``: the other channels ``o`` and ``G`` (n_f, m − 1) with ``âₖ = G a_o`` through the map ``B``
+    (n_f, m, n) — the model alone decides it, so it serves every sign pattern of the measured spectra."""
+    m = B.shape[1]
+    out = []
     for k in range(m):
         o = [i for i in range(m) if i != k]
-        G = np.einsum("fj,fji->fi", B[:, k, :], np.linalg.pinv(B[:, o, :]))  # (n_f, m − 1): âₖ per a₋ₖ
+        out.append((o, np.einsum("fj,fji->fi", B[:, k, :], np.linalg.pinv(B[:, o, :]))))
+    return out
+
+
+def _rho(S: np.ndarray, predictors: list[tuple[list[int], np.ndarray]]) -> np.ndarray:
+    """ρ of every channel (module docstring) from spectra ``S`` (n_f, m, m) and :func:`_predictors`."""
+    out = np.full(len(predictors), np.nan)
+    for k, (o, G) in enumerate(predictors):
         cross = np.einsum("fi,fi->", G, S[:, o, k]).real  # Σ E[âₖ aₖ*] with S[j, k] = E[a_j a_k*]
         pp = np.einsum("fi,fij,fj->", G, S[:, o][:, :, o], G.conj()).real
         pk = float(S[:, k, k].real.sum())
@@ -60,12 +68,12 @@ def channel_check(evaluator, state: FieldState = FieldState()) -> pd.DataFrame:
         B = interp_transfer(bl.force_to_acceleration(evaluator.theta_at(state, seg), offs if offs.any() else None),
                             bl.df, seg.f)
         sel = (seg.f >= bl.f_lo) & (seg.f <= bl.f_hi)
-        S, Bs = seg.S[sel][:, :m, :m], B[sel]
-        base = _rho(S, Bs)
+        S, pred = seg.S[sel][:, :m, :m], _predictors(B[sel])
+        base = _rho(S, pred)
         for r in range(m):
             d = np.ones(m)
             d[r] = -1.0
-            flipped = _rho(S * d[None, :, None] * d[None, None, :], Bs)
+            flipped = _rho(S * d[None, :, None] * d[None, None, :], pred)
             for k, c in enumerate(bl.channels):
                 rows.append({"run_id": seg.run_id, "wheelset": seg.wheelset, "from_m": seg.from_m, "to_m": seg.to_m,
                              "channel": c, "reversed": bl.channels[r], "rho": base[k], "rho_if_reversed": flipped[k]})
