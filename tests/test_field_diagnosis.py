@@ -500,3 +500,21 @@ def test_evaluator_gives_the_same_errors_after_its_memo_is_cleared(monkeypatch):
         evl.errors(FieldState().with_trackform_change(TrackformChange(0.0, 480.0, (("pad_stiffness", k),))))
     again = evl.errors(FieldState())
     assert max(float(np.nanmax(np.abs(a - b))) for a, b in zip(first, again)) < 1e-9
+
+
+def test_ranking_puts_physical_fits_before_fits_on_a_bound():
+    """A fit that lowers the error only with a value off its physical range (here the wheel load on its 10 kN
+    search bound, as `contact_stiffness` does on the line when it soaks up an error the catalogue does not hold)
+    ranks after every plausible candidate, even with the larger ΔBIC; among the plausible ones ΔBIC orders."""
+    from estimator.diagnosis.diagnose import CandidateFit, _rank
+    from estimator.diagnosis.effects import ContactStiffness
+
+    def fit(effect, dbic, plausible):
+        return CandidateFit(effect, {}, {}, (), () if plausible else ("wheel_load_N",), 1, dbic, 1.6, 1.4, 2.0, 1.9,
+                            10, True, plausible, False, pd.DataFrame())
+
+    soak = fit(ContactStiffness(), -300.0, False)
+    offset = fit(SensorOffset(channel="ACC_W1L_Z"), -170.0, True)
+    stretch = fit(TrackformEffect(section="B"), -160.0, True)
+    ranked = sorted([stretch, soak, offset], key=_rank)
+    assert ranked == [offset, stretch, soak]

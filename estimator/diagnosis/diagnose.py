@@ -14,7 +14,11 @@ when ``ΔBIC < −bic_threshold`` (10), ``E`` falls by at least
 plausible range, off the search bounds; *validated* when the error of the
 validation cells it acts on (segments the fit did not see: other stretches,
 other days) falls by at least ``validation_min_reduction``. Candidates are
-ranked by ΔBIC; the best one that is all three is accepted, added to the
+ranked by ΔBIC, those whose fitted values are plausible first: an effect
+that lowers the error only with a value outside its physical range or on a
+search bound has not explained the evidence, however large its ΔBIC (it
+usually soaks up an error the catalogue does not hold), and is listed after
+the physical ones. The best one that is all three is accepted, added to the
 state, and the catalogue is fitted again on top of it — until none passes
 (then the residual is reported plainly, with where it lies) or
 ``max_effects`` are accepted.
@@ -124,7 +128,7 @@ class FieldDiagnosis:
     Attributes
     ----------
     rounds : tuple of tuple of CandidateFit
-        Every round's candidates, ranked by ΔBIC.
+        Every round's candidates, ranked (plausible ones first, then by ΔBIC).
     accepted : tuple of CandidateFit
         In the order they were accepted.
     state : FieldState
@@ -438,6 +442,11 @@ def _by_band(ev, stages: list[tuple[str, list]], masks) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def _rank(c: CandidateFit) -> tuple[bool, float]:
+    """Sort key: plausible candidates first, each group by ΔBIC (module docstring)."""
+    return (not c.plausible, c.delta_bic)
+
+
 def diagnose_field(evaluator, candidates: list[FieldEffect], config, *, state: FieldState = FieldState()
                    ) -> FieldDiagnosis:
     """Fit every candidate, rank by the penalised criterion, accept the best one that passes, repeat.
@@ -480,7 +489,7 @@ def diagnose_field(evaluator, candidates: list[FieldEffect], config, *, state: F
     while len(accepted) < config.max_effects and remaining:
         _PROBLEM = _Problem(evaluator, masks, state, errs, config)
         _PROBLEM.floor = floor
-        fits = sorted(_fit_all(remaining, workers), key=lambda c: c.delta_bic)
+        fits = sorted(_fit_all(remaining, workers), key=_rank)
         rounds.append(tuple(fits))
         best = next((c for c in fits if c.passes), None)
         for c in fits[:5]:
