@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -52,6 +54,8 @@ def test_dask_batch_equals_the_local_path_and_reports_a_failed_run(batch):
     r_local = ingest(runs, spec, local, executor=LocalExecutor())
     seen = []
     with DaskExecutor(workers=2, memory_limit="1.5GiB") as ex:
+        # the nanny's MALLOC_TRIM_THRESHOLD_ (fixed mmap threshold: ~1.9x the CPU per run) is not in the workers
+        assert ex.client.run(os.environ.get, "MALLOC_TRIM_THRESHOLD_") == {w: None for w in ex.client.run(os.getpid)}
         r_dask = ingest(runs, spec, MonitoringStore(d / "dask"), executor=ex,
                         progress=lambda done, total, msg: seen.append((done, total)))
     assert seen[-1][0] == seen[-1][1] == 4  # the progress reached every run, the failed one included
