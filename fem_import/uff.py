@@ -26,11 +26,25 @@ Datasets used (layouts: UC-SDRL universal file descriptions, as printed by
   than 1 are scaled to unit modal mass, ``phi / sqrt(m)``; a modal mass of 0
   (pyuff's default when writing) is taken as "already mass-normalised" with a
   logged warning.
+* **2414** analysis data, the form current FE post-processors (Simcenter/NX,
+  FEMAP, Salome-Meca) write results in: a dataset is a mode shape when its
+  data sit at nodes (record 3 = 1), its analysis type is 2 (normal mode) and
+  its result type 8 (displacement; 95/96, "unknown 3/6-DOF vector", are read
+  as shapes with a warning), with data characteristic 2 or 3 as for 55 and
+  real values (data type 2 or 4).  Record 10 field 6 is the mode number,
+  record 12 fields 2 and 4 the frequency [Hz] and the modal mass (the
+  dataset's chart).  Other 2414 datasets (stresses, strain energy, element
+  data, static or transient results) are not mode shapes and are left out
+  (logged); complex modes (analysis types 3 and 7) are refused as in 55.
 
 Everything that pyuff parses is parsed by pyuff; this module only checks the
 dataset framing (so that a truncated last dataset is reported instead of
 silently dropped, as pyuff's block pairing would do) and validates what pyuff
 returns (consistent lengths, integral labels, finite values, node sets).
+The one exception is the data records of 2414: pyuff 2.5 reads one line of
+values per node, but double-precision exports write a 6-DOF node on two
+lines (``3D25.16``), so these records are read here, node line by node line,
+with the values counted across lines.
 Shapes are returned in the node order of dataset 2411 (file order).
 """
 
@@ -51,7 +65,9 @@ __all__ = ["read_uff", "read_uff_geometry", "sniff_uff"]
 
 log = logging.getLogger("fem_import")
 
-_SUPPORTED = (15, 164, 2411, 2412, 55)
+_SUPPORTED = (15, 164, 2411, 2412, 55, 2414)
+#: 2414 result types read as mode shapes: displacement, and the 'unknown' 3- and 6-DOF vectors
+_SHAPE_RESULTS = {8: "displacement", 95: "unknown 3-DOF vector", 96: "unknown 6-DOF vector"}
 #: FE descriptors pyuff reads with an extra beam record (Record 2 of 2412).
 _BEAM_DESCRIPTORS = frozenset({11, 21, 22, 23, 24})
 _PYUFF_MAX_ELEMENT_NODES = 8
@@ -222,7 +238,7 @@ def _read_parts_with(path: str, readable: str, data: bytes, frames, *, want_mode
     parts = _Parts()
     node_chunks: list[tuple[np.ndarray, np.ndarray, int]] = []
     element_sets: list[tuple[dict, int]] = []
-    wanted = {15, 164, 2411, 2412} | ({55} if want_modes else set())
+    wanted = {15, 164, 2411, 2412} | ({55, 2414} if want_modes else set())
     ignored: dict[int, int] = {}
     for k, (kind, line) in enumerate(zip(types.tolist(), start_lines)):
         if kind <= 0:
@@ -230,6 +246,13 @@ def _read_parts_with(path: str, readable: str, data: bytes, frames, *, want_mode
                               "integer", line=line + 1)
         if kind not in wanted:
             ignored[kind] = ignored.get(kind, 0) + 1
+            continue
+        if kind == 2414:  # read here, not by pyuff (module docstring)
+            md = _mode_2414(path, data[frames[k][1]:frames[k][2]], line, len(parts.modes) + 1)
+            if md is None:
+                ignored[kind] = ignored.get(kind, 0) + 1
+            else:
+                parts.modes.append(md)
             continue
         try:
             dset = uf.read_sets(setn=k)
@@ -379,7 +402,7 @@ def _elements(path, dset, line, known: set[int] | None) -> list[Element]:
 
 
 def _mode(path, dset, line, k) -> dict:
-    """Validated content of one dataset 55 (k = its position among the 55s, 1-based)."""
+    """Validated content of one dataset 55 (k = its position among the file's modes, 1-based)."""
     where = f"55 (mode {k})"
     at = dset.get("analysis_type")
     if at != 2:
@@ -389,10 +412,7 @@ def _mode(path, dset, line, k) -> dict:
         raise FEReadError(path, f"data type {dset.get('data_type')!r}; normal modes must be real (data type 2)",
                           dataset=where, line=line)
     ch, per = dset.get("data_ch"), dset.get("n_data_per_node")
-    if (ch, per) not in ((2, 3), (3, 6)):
-        raise FEReadError(path, f"data characteristic {ch!r} with {per!r} values per node; expected 2 (3 DOF "
-                          f"translation, 3 values) or 3 (6 DOF translation and rotation, 6 values)",
-                          dataset=where, line=line)
+    _check_characteristic(path, ch, per, where, line)
     try:
         nodes = np.asarray(dset["node_nums"])
         vals = np.column_stack([np.asarray(dset[f"r{i}"], dtype=float) for i in range(1, per + 1)])
@@ -401,6 +421,18 @@ def _mode(path, dset, line, k) -> dict:
     except (KeyError, TypeError, ValueError) as exc:
         raise FEReadError(path, f"pyuff returned an incomplete dataset ({exc!r})", dataset=where,
                           line=line) from exc
+    return _shape(path, where, line, k, dset.get("mode_n"), nodes, vals, freq, mm, dset.get("spec_data_type"))
+
+
+def _check_characteristic(path, ch, per, where, line) -> None:
+    if (ch, per) not in ((2, 3), (3, 6)):
+        raise FEReadError(path, f"data characteristic {ch!r} with {per!r} values per node; expected 2 (3 DOF "
+                          f"translation, 3 values) or 3 (6 DOF translation and rotation, 6 values)",
+                          dataset=where, line=line)
+
+
+def _shape(path, where, line, k, mode_n, nodes, vals, freq, mm, spec) -> dict:
+    """A mode's labels, values, frequency and modal mass, validated (datasets 55 and 2414)."""
     if nodes.ndim != 1 or nodes.size == 0 or vals.shape[0] != nodes.size:
         raise FEReadError(path, f"{nodes.size} node labels but {vals.shape[0]} value records: the dataset is "
                           f"truncated or corrupt", dataset=where, line=line)
@@ -418,8 +450,75 @@ def _mode(path, dset, line, k) -> dict:
     if not math.isfinite(mm) or mm < 0:
         raise FEReadError(path, f"mode {k} has modal mass {mm!r}; expected a positive number (or 0 for "
                           f"'mass-normalised')", dataset=where, line=line)
-    return {"k": k, "mode_n": dset.get("mode_n"), "freq": freq, "modal_mass": mm, "ids": ids, "vals": vals,
-            "line": line, "spec": dset.get("spec_data_type")}
+    return {"k": k, "mode_n": mode_n, "freq": freq, "modal_mass": mm, "ids": ids, "vals": vals,
+            "line": line, "spec": spec, "where": where}
+
+
+def _numbers(path, text: str, n_min: int, kind, what: str, dataset: str, line: int) -> list:
+    """At least ``n_min`` numbers of type ``kind`` from a free-format record (Fortran ``D`` exponents read)."""
+    try:
+        vals = [kind(tok.replace("D", "E").replace("d", "e")) if kind is float else int(tok) for tok in text.split()]
+    except ValueError:
+        raise FEReadError(path, f"{what}: {text.strip()!r} is not {n_min} or more "
+                          f"{'numbers' if kind is float else 'integers'}", dataset=dataset, line=line) from None
+    if len(vals) < n_min:
+        raise FEReadError(path, f"{what}: {len(vals)} value(s) where {n_min} are expected: the record is "
+                          f"truncated", dataset=dataset, line=line)
+    return vals
+
+
+def _mode_2414(path, block: bytes, line: int, k: int) -> dict | None:
+    """One dataset 2414 as a mode shape, or None when it holds no mode shape (module docstring).
+
+    ``block`` runs from the opening delimiter (``line``) to the closing one.
+    """
+    lines = block.decode("latin-1").splitlines()
+    where = f"2414 (mode {k})"
+    if len(lines) < 15:
+        raise FEReadError(path, f"{len(lines) - 2} header record line(s) where 13 are expected: the dataset is "
+                          f"truncated", dataset="2414", line=line)
+    label = lines[2].strip()
+    location = _numbers(path, lines[4], 1, int, "record 3 (dataset location)", "2414", line + 4)[0]
+    if location != 1:
+        return None  # data on elements or points: not a mode shape
+    _, analysis, ch, result, dtype, per = _numbers(path, lines[10], 6, int, "record 9", "2414", line + 10)[:6]
+    if analysis in (3, 7):
+        raise FEReadError(path, f"analysis type {analysis} (complex eigenvalue); only normal modes (analysis type "
+                          f"2) are supported", dataset=where, line=line + 10)
+    if analysis != 2 or result not in _SHAPE_RESULTS:
+        return None  # another analysis, or a nodal result that is no displacement (energy, stress, ...)
+    _check_characteristic(path, ch, per, where, line + 10)
+    if dtype not in (2, 4):
+        raise FEReadError(path, f"data type {dtype}; normal modes must be real (data type 2 or 4)", dataset=where,
+                          line=line + 10)
+    if result != 8:
+        log.warning("%s: dataset 2414 %s (mode %d) holds result type %d (%s); read as mode shape", path, label, k,
+                    result, _SHAPE_RESULTS[result])
+    mode_n = _numbers(path, lines[11], 6, int, "record 10", where, line + 11)[5]
+    real = _numbers(path, lines[13], 4, float, "record 12", where, line + 13)
+    freq, mm = real[1], real[3]
+    nodes, vals = [], []
+    i, data = 15, lines
+    while i < len(data):
+        if not data[i].strip():
+            i += 1
+            continue
+        node = _numbers(path, data[i], 1, int, "record 14 (node number)", where, line + i)
+        if len(node) != 1:
+            raise FEReadError(path, f"record 14: {data[i].strip()!r} where a node number alone is expected: the "
+                              f"records are misaligned", dataset=where, line=line + i)
+        row, start = [], i
+        i += 1
+        while len(row) < per and i < len(data):
+            row += _numbers(path, data[i], 1, float, f"record 15 of node {node[0]}", where, line + i)
+            i += 1
+        if len(row) != per:
+            raise FEReadError(path, f"node {node[0]} has {len(row)} value(s) where {per} are expected: the "
+                              f"dataset is truncated or its records misaligned", dataset=where, line=line + start)
+        nodes.append(node[0])
+        vals.append(row)
+    return _shape(path, where, line, k, mode_n, np.asarray(nodes), np.asarray(vals, float).reshape(-1, per), freq,
+                  mm, 8)
 
 
 def read_uff_geometry(path: str) -> Geometry:
@@ -437,7 +536,7 @@ def read_uff_geometry(path: str) -> Geometry:
 
 
 def read_uff(path: str) -> FEModes:
-    """Read FE normal modes from a universal file (datasets 164, 2411/15, 2412, 55).
+    """Read FE normal modes from a universal file (datasets 164, 2411/15, 2412, 55 or 2414).
 
     Parameters
     ----------
@@ -455,7 +554,7 @@ def read_uff(path: str) -> FEModes:
     Raises
     ------
     FEReadError
-        If the file is truncated or corrupt, has no dataset 55, mixes 3- and
+        If the file is truncated or corrupt, has no mode shape (55 or 2414), mixes 3- and
         6-DOF shapes, if a mode misses a node of the others, if a mode has a
         node unknown to dataset 2411, if a shape value is not finite, or if
         the units cannot be converted to SI.  The message names the file,
@@ -463,13 +562,14 @@ def read_uff(path: str) -> FEModes:
     """
     parts = _read_parts(path, want_modes=True)
     if not parts.modes:
-        raise FEReadError(path, "no dataset 55 (normal mode shapes) in the file")
+        raise FEReadError(path, "no dataset 55 (normal mode shapes) in the file, nor a 2414 with normal-mode "
+                                "displacements at nodes")
     history = list(parts.history)
     first = parts.modes[0]
     n_dof = first["vals"].shape[1]
     ref = set(first["ids"].tolist())
     for md in parts.modes[1:]:
-        where = f"55 (mode {md['k']})"
+        where = md["where"]
         if md["vals"].shape[1] != n_dof:
             raise FEReadError(path, f"mode {md['k']} has {md['vals'].shape[1]} values per node but mode 1 has "
                               f"{n_dof}: all modes must have the same DOFs", dataset=where, line=md["line"])
@@ -487,7 +587,7 @@ def read_uff(path: str) -> FEModes:
         extra = sorted(ref - known)
         if extra:
             raise FEReadError(path, f"mode shapes have node(s) {extra[:10]} that are not in the node dataset "
-                              f"(2411/15){' ...' if len(extra) > 10 else ''}", dataset="55 (mode 1)",
+                              f"(2411/15){' ...' if len(extra) > 10 else ''}", dataset=first["where"],
                               line=first["line"])
         keep = np.array([n in ref for n in parts.node_ids.tolist()], bool)
         node_ids, xyz = parts.node_ids[keep], parts.xyz[keep]
@@ -544,4 +644,4 @@ def read_uff(path: str) -> FEModes:
 
 register_format("uff", patterns=("*.uff", "*.unv", "*.uf"), sniff=sniff_uff, reader=read_uff,
                 geometry=read_uff_geometry, aliases=("unv", "universal"),
-                description="Universal file: 164, 2411/15, 2412, 55 (via pyuff)")
+                description="Universal file: 164, 2411/15, 2412, 55 or 2414 (via pyuff)")

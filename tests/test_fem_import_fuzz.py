@@ -25,7 +25,7 @@ from hypothesis import strategies as st
 
 import fem_import
 from fem_import import FEModes, FEReadError, UnknownFormatError
-from test_fem_import_models import write_small_punch, write_small_uff
+from test_fem_import_models import write_small_punch, write_small_uff, write_small_uff_2414
 
 _LONG = os.environ.get("RAILMODAL_FUZZ_EXAMPLES")
 FUZZ = settings(max_examples=int(_LONG or 60), deadline=None, derandomize=_LONG is None,
@@ -71,7 +71,7 @@ def check_outcome(path, seconds=10.0, **kw):
 def files(tmp_path_factory):
     root = tmp_path_factory.mktemp("fuzz")
     out = {}
-    for kind, writer in (("uff", write_small_uff), ("pch", write_small_punch)):
+    for kind, writer in (("uff", write_small_uff), ("unv", write_small_uff_2414), ("pch", write_small_punch)):
         path = writer(root / f"small.{kind}")
         out[kind] = (path.read_bytes(), fem_import.read(path))
     out["dir"] = root
@@ -82,7 +82,7 @@ def _target(files, name):
     return files["dir"] / name
 
 
-@pytest.mark.parametrize("kind", ["uff", "pch"])
+@pytest.mark.parametrize("kind", ["uff", "unv", "pch"])
 @FUZZ
 @given(data=st.data())
 def test_truncation_never_leaks_nor_corrupts(files, kind, data):
@@ -108,7 +108,7 @@ NUMERIC = set(b"0123456789.+-EeD")
 REPLACEMENTS = st.sampled_from(list(b"0123456789.+-EeDdxXnNaA /\t\n*#$") + [0, 255])
 
 
-@pytest.mark.parametrize("kind", ["uff", "pch"])
+@pytest.mark.parametrize("kind", ["uff", "unv", "pch"])
 @FUZZ
 @given(data=st.data())
 def test_byte_corruption_in_numeric_fields(files, kind, data):
@@ -121,10 +121,10 @@ def test_byte_corruption_in_numeric_fields(files, kind, data):
     path = _target(files, f"bad_{kind}.{kind}")
     path.write_bytes(bytes(buf))
     check_outcome(path)
-    check_outcome(path, format="uff" if kind == "uff" else "nastran-punch")
+    check_outcome(path, format="nastran-punch" if kind == "pch" else "uff")
 
 
-@pytest.mark.parametrize("kind", ["uff", "pch"])
+@pytest.mark.parametrize("kind", ["uff", "unv", "pch"])
 @FUZZ
 @given(data=st.data())
 def test_line_edits(files, kind, data):
@@ -144,10 +144,11 @@ def test_line_edits(files, kind, data):
     check_outcome(path)
 
 
-HEADERS = {"uff": b"    -1\n    55\n", "pch": b"$TITLE   = GARBAGE\n$EIGENVECTOR\n$REAL OUTPUT\n"}
+HEADERS = {"uff": b"    -1\n    55\n", "unv": b"    -1\n  2414\n",
+           "pch": b"$TITLE   = GARBAGE\n$EIGENVECTOR\n$REAL OUTPUT\n"}
 
 
-@pytest.mark.parametrize("kind", ["none", "uff", "pch"])
+@pytest.mark.parametrize("kind", ["none", "uff", "unv", "pch"])
 @FUZZ
 @given(body=st.one_of(st.binary(max_size=600),
                       st.text(alphabet=st.sampled_from(list("0123456789 .-+EG$\n-CONT=ABMODE")), max_size=600)

@@ -46,6 +46,38 @@ def write_small_uff(path, seed: int = 0):
     return path
 
 
+def dataset_2414(label, mode_n, freq, ids, values, *, double=True, analysis=2, result=8, location=1,
+                  modal_mass=1.0) -> str:
+    """One dataset 2414 as FE post-processors write it: double precision as 3D25.16 (a 6-DOF node on two
+    lines), single precision as 6E13.5."""
+    per = values.shape[1]
+    out = ["    -1", "  2414", f"{label:10d}", f"MODE {mode_n}", f"{location:10d}", "NONE", "NONE", "NONE", "NONE",
+           f" MODE SAME{mode_n:10d} FREQUENCY{freq:13.5E}",
+           "".join(f"{v:10d}" for v in (1, analysis, 2 if per == 3 else 3, result, 4 if double else 2, per)),
+           "".join(f"{v:10d}" for v in (1, 0, 1, 0, 1, mode_n, 0, 0)), f"{0:10d}{0:10d}",
+           "".join(f"{v:13.5E}" for v in (0.0, freq, (2 * np.pi * freq) ** 2, modal_mass, 0.0, 0.0)),
+           "".join(f"{0.0:13.5E}" for _ in range(6))]
+    per_line = 3 if double else 6
+    for n, row in zip(ids, values):
+        out.append(f"{int(n):10d}")
+        for a in range(0, per, per_line):
+            chunk = row[a:a + per_line]
+            out.append("".join(f"{v:25.16E}".replace("E", "D") if double else f"{v:13.5E}" for v in chunk))
+    out.append("    -1")
+    return "\n".join(out) + "\n"
+
+
+def write_small_uff_2414(path, seed: int = 0, *, double=True, n_dof=6, extra="", modal_mass=1.0):
+    """The small model's 164/2411/2412 (as :func:`write_small_uff` writes them) with its modes as 2414 datasets
+    instead of 55; ``extra`` (datasets' text) goes before them."""
+    text = write_small_uff(path, seed).read_text()
+    ids, _, _, freqs, shapes = small_model(seed)
+    body = "".join(dataset_2414(k + 1, k + 1, f, ids, shapes[k, :, :n_dof], double=double, modal_mass=modal_mass)
+                   for k, f in enumerate(freqs))
+    path.write_text(text[: text.index("    -1\n    55")] + extra + body)
+    return path
+
+
 def write_small_punch(path, seed: int = 0):
     ids, _, _, freqs, shapes = small_model(seed)
     write_punch_eigenvectors(path, ids, freqs, shapes, title="SMALL TEST MODEL")

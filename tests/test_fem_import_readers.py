@@ -18,7 +18,7 @@ import fem_import
 from fem_import import FEReadError, UnknownFormatError
 from lab_data.truth import design_modes
 from lab_data.wheelset import WheelsetParameters
-from test_fem_import_models import small_model, write_small_punch, write_small_uff
+from test_fem_import_models import dataset_2414, small_model, write_small_punch, write_small_uff, write_small_uff_2414
 
 
 @pytest.fixture(scope="module")
@@ -329,4 +329,54 @@ def test_uff_complex_modes_are_refused(tmp_path):
     old = f"{1:10d}{2:10d}{3:10d}{8:10d}{2:10d}{6:10d}\n"
     path.write_text(text.replace(old, f"{1:10d}{3:10d}{3:10d}{8:10d}{2:10d}{6:10d}\n", 1))
     with pytest.raises(FEReadError, match=r"dataset 55 \(mode 1\).*analysis type 3"):
+        fem_import.read(path)
+
+
+# ---------------------------------------------------------------- UFF 2414 (analysis data)
+def test_uff_2414_modes_equal_the_same_modes_as_55(tmp_path):
+    """Simcenter-style 2414 (double precision, a 6-DOF node on two 3D25.16 lines), with a nodal strain energy and
+    an element stress set of the same analysis beside the shapes: the modes read as from the 55 file, to the
+    55 file's own 7 significant digits (1PE13.6); the other 2414 datasets are left out."""
+    ids, _, _, freqs, shapes = small_model()
+    energy = dataset_2414(90, 1, freqs[1], ids, np.abs(shapes[1, :, :3]), result=7)
+    stress = dataset_2414(91, 1, freqs[1], ids, shapes[1, :, :6], location=2).replace(
+        f"{int(ids[0]):10d}\n", f"{1:10d}{6:10d}\n", 1)
+    m2414 = fem_import.read(write_small_uff_2414(tmp_path / "nx.unv", extra=energy))
+    m55 = fem_import.read(write_small_uff(tmp_path / "base.uff"))
+    assert m2414.format == "uff" and m2414.has_rotations and len(m2414) == len(freqs)
+    np.testing.assert_array_equal(m2414.node_ids, m55.node_ids)
+    np.testing.assert_array_equal(m2414.xyz, m55.xyz)
+    assert m2414.elements == m55.elements
+    np.testing.assert_allclose(m2414.freqs_hz, m55.freqs_hz, rtol=1e-5)
+    np.testing.assert_allclose(m2414.shapes, shapes, rtol=1e-14, atol=0)  # D25.16: exact to double precision
+    np.testing.assert_allclose(m55.shapes, m2414.shapes, rtol=1e-6, atol=1e-7)
+    with_stress = fem_import.read(write_small_uff_2414(tmp_path / "nx2.unv", extra=stress))
+    np.testing.assert_array_equal(with_stress.shapes, m2414.shapes)
+
+
+def test_uff_2414_single_precision_3dof_and_modal_mass(tmp_path):
+    ids, _, _, freqs, shapes = small_model()
+    m = fem_import.read(write_small_uff_2414(tmp_path / "femap.unv", double=False, n_dof=3, modal_mass=4.0))
+    assert not m.has_rotations and m.shapes.shape == (len(freqs), ids.size, 3)
+    np.testing.assert_allclose(m.shapes, shapes[:, :, :3] / 2.0, rtol=5e-6, atol=0)  # phi / sqrt(4)
+    assert any("unit modal mass" in h for h in m.history)
+
+
+def test_uff_2414_truncated_node_record_is_named(tmp_path):
+    path = write_small_uff_2414(tmp_path / "cut2414.unv")
+    lines = path.read_text().splitlines(keepends=True)
+    starts = [i for i, ln in enumerate(lines) if ln.rstrip() == "  2414"]
+    node = next(i for i in range(starts[1], len(lines)) if lines[i].strip() == "13")  # mode 2, node 13
+    path.write_text("".join(lines[:node + 1] + lines[node + 2:]))  # its second line of values lost
+    with pytest.raises(FEReadError, match=r"cut2414\.unv, dataset 2414 \(mode 2\), line (\d+): .*node 13") as err:
+        fem_import.read(path)
+    assert err.value.line == node + 1
+
+
+def test_uff_2414_complex_modes_are_refused(tmp_path):
+    path = write_small_uff_2414(tmp_path / "cplx2414.unv")
+    text = path.read_text()
+    old = "".join(f"{v:10d}" for v in (1, 2, 3, 8, 4, 6))
+    path.write_text(text.replace(old, "".join(f"{v:10d}" for v in (1, 3, 3, 8, 4, 6)), 1))
+    with pytest.raises(FEReadError, match=r"dataset 2414 \(mode 1\).*analysis type 3 \(complex eigenvalue\)"):
         fem_import.read(path)
