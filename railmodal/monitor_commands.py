@@ -4,8 +4,10 @@
   every run estimated, aligned and written to the monitoring store (a Dask local cluster by default,
   ``--scheduler ADDRESS`` for an existing cluster, ``--executor local`` for this process), then the days
   re-averaged; a progress bar on stderr; a failed or rejected run is reported and the batch goes on.
-* ``field monitor --store DIR [--section FROM TO] --out DIR`` — trends, grinding events, forecast table,
-  figures and an HTML report.
+* ``field monitor --store DIR [--section FROM TO] [--calibration-trolley T.csv [--calibration-site FROM TO]]
+  --out DIR`` — trends, grinding events, forecast table, figures and an HTML report; with a trolley record of a
+  calibration site, the estimate's measured error there widens every window's interval
+  (:func:`estimator.monitoring.confidence.reference_calibration`).
 * ``field compare-reference --store DIR --trolley T.csv... --out DIR`` — trolley records aligned to the
   train's chainage, processed by the same EN code, band errors per rail (table and plots).
 * ``field reprocess --store DIR --model NEW.npz --sensors S.csv [--line line.json]`` — the archive again
@@ -137,8 +139,23 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
 
     t0 = time.perf_counter()
     store = MonitoringStore(args.store)
+    calibration = None
+    if args.calibration_trolley:
+        from estimator.monitoring import reference_calibration
+        from estimator.monitoring.reference import compare_reference
+
+        comp = compare_reference(store, args.calibration_trolley, line=args.line_id, model_hash=args.model_version)
+        site = tuple(args.calibration_site) if args.calibration_site else None
+        calibration = reference_calibration(comp.windows, site=site)
+        for _, r in calibration.iterrows():
+            state = (f"truth within [{r['lo_db']:+.2f}, {r['hi_db']:+.2f}] dB of an estimate" if r["lo_db"] == r["lo_db"]
+                     else "too few windows: not calibrated")
+            print(f"  calibration {r['band_mm']:>8s} mm on {r['from_m']:.0f}-{r['to_m']:.0f} m: {r['windows']} windows, "
+                  f"error {r['mean_error_db']:+.2f} ± {r['sd_error_db']:.2f} dB: {state}")
+    elif args.calibration_site:
+        raise ValueError("--calibration-site needs --calibration-trolley (the trolley record of the site)")
     res = monitor(store, line=args.line_id, section_range=tuple(args.section) if args.section else None,
-                  model_hash=args.model_version, line_file=args.line, as_of=args.as_of)
+                  model_hash=args.model_version, line_file=args.line, as_of=args.as_of, calibration=calibration)
     with staged_output(args.out) as tmp:
         files = write_monitoring(res, tmp)
     dates = sorted(res.day_windows["date"].unique())
@@ -269,6 +286,13 @@ def add_monitor_commands(sub) -> None:
     mon.add_argument("--model-version", default=None, help="model version (hash prefix; default: the last processed)")
     mon.add_argument("--as-of", default=None, type=_iso_date("--as-of"),
                      help="YYYY-MM-DD: the line as known on that day (survey days up to it: the forecast made then)")
+    mon.add_argument("--calibration-trolley", default=None,
+                     type=existing_file("--calibration-trolley", "trolley record (CSV)"),
+                     help="trolley record of a calibration site: the estimate's error against it is added to every "
+                          "window's interval")
+    mon.add_argument("--calibration-site", nargs=2, type=bounded_float("--calibration-site", 0.0, 1e7, unit="m"),
+                     default=None, metavar=("FROM", "TO"), action=band_action("--calibration-site", 0.0, 1e7, unit="m"),
+                     help="chainage range of the calibration site [m] (default: all the trolley covers)")
     mon.set_defaults(func=_cmd_monitor)
 
     cmp_ = fsub.add_parser("compare-reference", help="trolley records against the train's day averages per band "

@@ -153,3 +153,29 @@ def test_the_trolley_table_per_rail_and_band_is_the_trains_error_against_the_tru
     assert len(tab) == 4 and (tab["windows"] >= 0.9 * tab["windows_truth"]).all()
     assert np.all(np.abs(tab["level_error_db"] - tab["level_error_db_truth"]) <= 0.3)
     assert np.all(np.abs(tab["level_error_db"]) <= 1.5)
+
+
+def test_a_trolley_calibrated_half_bounds_the_truth_on_the_other_half(line_store):
+    """The trolley of one half of the section (400-600 m or 600-800 m) calibrates the estimator's window error;
+    on the other half, which the calibration did not see, the intervals with the reference source cover the true
+    band peak-to-peak in ≥ 90 % of the 1 m windows (30-100 and 100-300 mm; measured 0.995 and 0.955 on these 4
+    runs without the perturbation sources, 0.997 and 0.986 on the acceptance's 7-run day with them)."""
+    from monitor_truth import truth_windows
+
+    from estimator.monitoring import monitor, reference_calibration, with_reference
+    from estimator.monitoring.confidence import coverage
+    from estimator.monitoring.reference import compare_reference
+
+    camp, spec, st, res = line_store
+    date = res.dates[0]
+    comp = compare_reference(st, camp / "trolley" / f"{date}.csv", cfg=spec.monitoring)
+    days = monitor(st, line_file=camp / "line.json").day_windows
+    truth = truth_windows(camp, date)
+    held = []
+    for site in ((400.0, 600.0), (600.0, 800.0)):
+        cal = reference_calibration(comp.windows, site=site)
+        assert (cal.set_index("band_mm").loc[list(BANDS), "windows"] >= 150).all()
+        d = with_reference(days, cal)
+        held.append(d[(d["window_m"] < site[0]) | (d["window_m"] >= site[1])])
+    cov = coverage(pd.concat(held, ignore_index=True), truth).set_index("band_mm")["coverage"]
+    assert (cov[list(BANDS)] >= 0.9).all(), cov.to_dict()

@@ -90,6 +90,50 @@ def test_sources_combine_in_quadrature_on_each_side():
     assert out["ci_hi_db"] == pytest.approx(20 + math.sqrt(1 + 9 + 0.25), rel=1e-6)
 
 
+def test_reference_calibration_is_a_prediction_interval_that_covers_windows_it_did_not_see():
+    """Window errors N(+0.6 dB, 0.5 dB) (the estimator's bias and window-to-window error on the line): a calibration
+    site of n windows bounds the truth of the windows it did not see in 95 % of them on average over repeated
+    sites (93.5-96.5 %), for long sites (n = 300) and short ones (n = 8: Student's t widens the interval, so
+    short sites still cover); a band with fewer windows than ``min_windows`` is not calibrated; the site range
+    selects the windows."""
+    from estimator.monitoring.confidence import reference_calibration
+
+    rng = np.random.default_rng(21)
+    for n, trials in ((300, 40), (8, 400)):
+        covered = []
+        for _ in range(trials):
+            site = pd.DataFrame({"rail": "L", "band_mm": "30-100", "window_m": np.arange(n, dtype=float),
+                                 "error_db": rng.normal(0.6, 0.5, n)})
+            cal = reference_calibration(site).iloc[0]
+            other = rng.normal(0.6, 0.5, 200)
+            truth_offset = -other  # the truth lies at L - error
+            covered.append(((truth_offset >= cal["lo_db"]) & (truth_offset <= cal["hi_db"])).mean())
+        assert 0.935 <= np.mean(covered) <= 0.965, (n, np.mean(covered))
+    errs = pd.DataFrame({"rail": ["L", "R", "L"], "band_mm": ["30-100", "30-100", "100-300"],
+                         "window_m": [1.0, 2.0, 50.0], "error_db": [0.5, 0.7, 0.1]})
+    cal = reference_calibration(errs, site=(0.0, 10.0), min_windows=2).set_index("band_mm")
+    assert list(cal.index) == ["30-100"] and cal.loc["30-100", "windows"] == 2
+    assert cal.loc["30-100", "mean_error_db"] == pytest.approx(0.6)
+    assert np.isnan(reference_calibration(errs, min_windows=5)[["lo_db", "hi_db"]].to_numpy()).all()
+
+
+def test_the_reference_source_widens_each_side_in_quadrature_and_keeps_the_floor():
+    from estimator.monitoring.confidence import with_reference
+
+    day = pd.DataFrame({"rail": ["L", "L", "L"], "band_mm": ["30-100", "30-100", "300-1000"],
+                        "window_m": [0.0, 1.0, 0.0], "level_db": [20.0, 20.0, 30.0],
+                        "ci_lo_db": [19.0, -np.inf, 29.0], "ci_hi_db": [22.0, 20.0, 31.0]})
+    cal = pd.DataFrame({"band_mm": ["30-100"], "lo_db": [-1.5], "hi_db": [0.4]})
+    out = with_reference(day, cal)
+    assert out["ci_lo_db"].iloc[0] == pytest.approx(20 - math.sqrt(1 + 2.25))
+    assert out["ci_hi_db"].iloc[0] == pytest.approx(20 + math.sqrt(4 + 0.16))
+    assert out["ci_lo_db"].iloc[1] == -np.inf  # below the noise floor: no lower bound, as before
+    assert (out.iloc[2][["ci_lo_db", "ci_hi_db"]].to_numpy() == [29.0, 31.0]).all()  # band not calibrated
+    assert np.isnan(out["reference_hi_db"].iloc[2]) and out["reference_lo_db"].iloc[0] == -1.5
+    cal_below = pd.DataFrame({"band_mm": ["30-100"], "lo_db": [-2.0], "hi_db": [-0.5]})  # truth always below
+    assert with_reference(day, cal_below)["ci_hi_db"].iloc[0] == pytest.approx(22.0)
+
+
 def test_variant_spread_is_the_quantile_of_level_differences_against_the_same_run():
     nom = pd.DataFrame([rows("a", 10.0), rows("b", 20.0)])
     rng = np.random.default_rng(3)
@@ -361,3 +405,20 @@ def test_the_noise_floor_is_subtracted_in_energy_and_windows_under_it_are_upper_
     acc, step = noise_run(R(), 0.03, seed=1)
     assert np.isnan(acc[0, 1::4]).all() and np.std(acc[np.isfinite(acc)]) == pytest.approx(0.03, rel=0.05)
     assert "0.03 m/s^2" in step
+
+
+def test_trend_plot_takes_a_zero_width_interval_that_rounding_made_negative():
+    """One run a day and no systematic source: the interval has zero width, and the floor correction's dB round
+    trip can leave its lower end 1e-15 above the level; the trend figure still draws (matplotlib refuses negative
+    error bars)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from estimator.monitoring.plot import plot_trend
+
+    pk = np.array([10.0, 12.0])
+    ds = pd.DataFrame({"date": ["2024-03-04", "2024-03-18"], "section": "s", "rail": "L", "band_mm": "30-100",
+                       "pk_pk_um": pk, "pk_lo_um": pk * (1 + 1e-15), "pk_hi_um": pk * 1.1})
+    fig = plot_trend(ds, pd.DataFrame(columns=["section", "rail", "band_mm", "slope_um_per_day"]), pd.DataFrame(),
+                     "s", "L", "30-100")
+    assert len(fig.axes[0].lines) >= 1

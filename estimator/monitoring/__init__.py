@@ -33,13 +33,21 @@ In Python::
     ingest(sorted(Path("campaign/runs").rglob("*.mf4")), spec, "store/")
     state = monitor("store/", line_file="campaign/line.json")
     state.forecast          # when each section crosses its threshold
+
+A trolley record of a calibration site adds the estimator's measured error to every window's interval::
+
+    from estimator.monitoring import reference_calibration
+    from estimator.monitoring.reference import compare_reference
+    cal = reference_calibration(compare_reference("store/", "trolley/2024-03-04.csv").windows, site=(500, 680))
+    state = monitor("store/", line_file="campaign/line.json", calibration=cal)
 """
 
 from estimator.monitoring.alignment import Alignment, AlignmentStage, FeatureProfile, ShiftFit, align_profiles, \
     align_to_line, feature_profile
 from estimator.monitoring.averaging import day_average, section_table
 from estimator.monitoring.config import MonitoringConfig
-from estimator.monitoring.confidence import coverage, variant_deltas, variant_spread, with_intervals
+from estimator.monitoring.confidence import (coverage, reference_calibration, variant_deltas, variant_spread,
+                                            with_intervals, with_reference)
 from estimator.monitoring.consistency import consistency_checks
 from estimator.monitoring.errors import (AlignmentError, MonitoringConfigError, MonitoringError, StoreError,
                                          TrolleyReferenceError)
@@ -52,7 +60,7 @@ from estimator.monitoring.workflow import (DayReference, IngestResult, IngestSpe
 __all__ = [
     "Alignment", "AlignmentStage", "FeatureProfile", "ShiftFit", "align_profiles", "align_to_line", "feature_profile",
     "day_average", "section_table", "MonitoringConfig", "coverage", "variant_deltas", "variant_spread",
-    "with_intervals", "consistency_checks", "AlignmentError", "MonitoringConfigError", "MonitoringError",
+    "with_intervals", "reference_calibration", "with_reference", "consistency_checks", "AlignmentError", "MonitoringConfigError", "MonitoringError",
     "StoreError", "TrolleyReferenceError", "detect_grinding", "grinding_effect", "MonitoringStore", "forecast",
     "growth", "DayReference", "IngestResult", "IngestSpec", "MonitorResult", "RunResult", "ingest", "monitor",
     "process_run", "reprocess", "update_days",

@@ -24,6 +24,21 @@ range) of :mod:`estimator.monitoring.variants`. The estimator's contact and
 track are idealisations of one vehicle load and one continuously supported
 track; these variants span what the real ones may be.
 
+**Reference calibration** (systematic, measured; optional): where a trolley
+measured the rails on a survey day (a *calibration site*), the day
+average's error against it, window by window and per band (pooled over the
+rails), shows the estimator's own systematic error on this line, with this
+vehicle and model — what the perturbations above only suppose. Its
+prediction interval for one more window, ``m ± t_{(1+c)/2, n−1} s
+sqrt(1 + 1/n)`` (``m, s`` the mean and standard deviation of the ``n``
+calibration windows' errors in dB; Student's t: a short site widens it),
+bounds the error of every other window of the line: the truth lies in
+``[L − m − h, L − m + h]`` (:func:`reference_calibration`,
+:func:`with_reference`). It is conservative: the errors hold the trolley's
+own noise and the calibration day's run-to-run scatter, which the scatter
+source counts again. It holds while the line is like the site (trackform,
+speed, curvature): a site on a curve calibrates curves.
+
 **Combined.** The sources are independent, so their half-widths add in
 quadrature on each side (they are asymmetric in dB: each side is combined on
 its own): ``lower = sqrt(h_s² + Σ_k a_k²)`` with ``a_k = max(0, −q_lo,k)``
@@ -41,9 +56,12 @@ from scipy import stats
 
 from estimator.monitoring.averaging import MIN_VALID_SHARE, level_db
 
-__all__ = ["SOURCES", "variant_deltas", "variant_spread", "with_intervals", "coverage", "coverage_table"]
+__all__ = ["SOURCES", "variant_deltas", "variant_spread", "with_intervals", "coverage", "coverage_table",
+           "reference_calibration", "with_reference"]
 
 SOURCES = ("model", "placement", "contact", "track")
+#: the measured source (:func:`with_reference`), added at monitoring time when a calibration site is given
+REFERENCE = "reference"
 
 
 def variant_deltas(variants: pd.DataFrame, nominal: pd.DataFrame, unit: str = "window_m") -> pd.DataFrame:
@@ -109,6 +127,76 @@ def with_intervals(day: pd.DataFrame, spread: pd.DataFrame | None = None, *, uni
     return out
 
 
+def reference_calibration(errors: pd.DataFrame, *, site: tuple[float, float] | None = None,
+                          confidence: float = 0.95, min_windows: int = 5) -> pd.DataFrame:
+    """The estimate's error against a reference on a calibration site, per band, as a prediction interval.
+
+    Parameters
+    ----------
+    errors : pandas.DataFrame
+        ``rail, band_mm, window_m, error_db`` (estimate − reference, dB): the windows of
+        :func:`estimator.monitoring.reference.compare_reference` (``.windows``).
+    site : (float, float), optional
+        Chainage range [m] of the calibration site (default: every window the reference covers).
+    confidence : float
+    min_windows : int
+        A band with fewer calibration windows is not calibrated (its row says so).
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``band_mm, windows, mean_error_db, sd_error_db, lo_db, hi_db, from_m, to_m``: ``lo_db, hi_db`` are the
+        offsets of the truth from an estimate, ``−m ∓ t s sqrt(1 + 1/n)`` (module docstring); NaN when the band
+        has fewer than ``min_windows`` windows.
+    """
+    e = errors[np.isfinite(errors["error_db"].to_numpy(float))]
+    if site is not None:
+        e = e[(e["window_m"] >= site[0]) & (e["window_m"] < site[1])]
+    rows = []
+    for band, g in e.groupby("band_mm", sort=True):
+        v = g["error_db"].to_numpy(float)
+        n = v.size
+        row = {"band_mm": band, "windows": int(n), "mean_error_db": float(v.mean()),
+               "sd_error_db": float(v.std(ddof=1)) if n > 1 else np.nan,
+               "from_m": float(g["window_m"].min()), "to_m": float(g["window_m"].max())}
+        if n >= max(2, min_windows):
+            h = stats.t.ppf((1 + confidence) / 2, n - 1) * row["sd_error_db"] * np.sqrt(1 + 1 / n)
+            row.update(lo_db=-row["mean_error_db"] - h, hi_db=-row["mean_error_db"] + h)
+        else:
+            row.update(lo_db=np.nan, hi_db=np.nan)
+        rows.append(row)
+    return pd.DataFrame(rows, columns=["band_mm", "windows", "mean_error_db", "sd_error_db", "lo_db", "hi_db",
+                                       "from_m", "to_m"])
+
+
+def with_reference(intervals: pd.DataFrame, calibration: pd.DataFrame) -> pd.DataFrame:
+    """``intervals`` (:func:`with_intervals`) with the reference source added and the combined interval widened.
+
+    Adds ``reference_lo_db, reference_hi_db`` (offsets from ``level_db``; NaN for a band the calibration does not
+    cover) and combines them in quadrature with what ``ci_lo_db, ci_hi_db`` held, each side on its own (module
+    docstring); ``pk_lo_um, pk_hi_um`` follow.
+    """
+    out = intervals.copy()
+    c = calibration.set_index("band_mm")[["lo_db", "hi_db"]] if len(calibration) else None
+    if c is None:
+        out[f"{REFERENCE}_lo_db"] = np.nan
+        out[f"{REFERENCE}_hi_db"] = np.nan
+        return out
+    j = out[["band_mm"]].join(c, on="band_mm")
+    lo, hi = j["lo_db"].to_numpy(float), j["hi_db"].to_numpy(float)
+    out[f"{REFERENCE}_lo_db"] = lo
+    out[f"{REFERENCE}_hi_db"] = hi
+    L = out["level_db"].to_numpy(float)
+    with np.errstate(invalid="ignore"):
+        lower = np.sqrt((L - out["ci_lo_db"].to_numpy(float)) ** 2 + np.nan_to_num(np.maximum(0.0, -lo)) ** 2)
+        upper = np.sqrt((out["ci_hi_db"].to_numpy(float) - L) ** 2 + np.nan_to_num(np.maximum(0.0, hi)) ** 2)
+    out["ci_lo_db"] = L - lower
+    out["ci_hi_db"] = L + upper
+    out["pk_lo_um"] = 10 ** (out["ci_lo_db"] / 20)
+    out["pk_hi_um"] = 10 ** (out["ci_hi_db"] / 20)
+    return out
+
+
 def coverage(intervals: pd.DataFrame, truth: pd.DataFrame, *, unit: str = "window_m",
              columns: tuple[str, str] = ("ci_lo_db", "ci_hi_db"), by: tuple[str, ...] = ("date",)) -> pd.DataFrame:
     """Share of units whose truth level lies inside the interval, per band (and ``by``).
@@ -138,7 +226,7 @@ def coverage_table(intervals: pd.DataFrame, truth: pd.DataFrame, *, unit: str = 
     """
     out = coverage(intervals, truth, unit=unit, by=by).set_index("band_mm")
     L = intervals["level_db"]
-    for src in ("scatter",) + SOURCES:
+    for src in ("scatter",) + SOURCES + (REFERENCE,):
         lo, hi = f"{src}_lo_db", f"{src}_hi_db"
         if lo not in intervals.columns or not np.isfinite(intervals[lo]).any():
             continue

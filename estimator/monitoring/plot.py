@@ -171,7 +171,11 @@ def plot_trend(day_sections: pd.DataFrame, growth: pd.DataFrame, forecast: pd.Da
     fig, axs = _axes(ax, 1, 1, (8, 4))
     a = axs[0]
     t = pd.to_datetime(d["date"])
-    yerr = np.vstack([d["pk_pk_um"] - d["pk_lo_um"], d["pk_hi_um"] - d["pk_pk_um"]]) if "pk_lo_um" in d else None
+    yerr = None
+    if "pk_lo_um" in d:
+        # a zero-width side (one run, no systematic source) may come out -1e-15 after the floor correction's
+        # dB round trip; matplotlib refuses any negative error bar
+        yerr = np.clip(np.vstack([d["pk_pk_um"] - d["pk_lo_um"], d["pk_hi_um"] - d["pk_pk_um"]]), 0.0, None)
     a.errorbar(t, d["pk_pk_um"], yerr=yerr, fmt="o", capsize=3, label="day average (combined interval)")
     g = growth[(growth["section"] == section) & (growth["rail"] == rail) & (growth["band_mm"] == band)]
     f = forecast[(forecast["section"] == section) & (forecast["rail"] == rail) & (forecast["band_mm"] == band)] \

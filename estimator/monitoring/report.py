@@ -87,7 +87,8 @@ def _figures(res, folder: Path, cfg: MonitoringConfig) -> dict[str, tuple[Path, 
             band = r["band_mm"]
             out["averaging"] = (_save(P.plot_averaging(res.windows, dw, last, band), folder / "averaging.png"),
                                 f"{band} mm, {last}: each run (thin) and the day's energy average (thesis Fig. 4.10).")
-            for src, fig_no in (("model", "4.11-4.13"), ("placement", "4.15"), ("scatter", ""), ("combined", "")):
+            for src, fig_no in (("model", "4.11-4.13"), ("placement", "4.15"), ("scatter", ""), ("reference", ""),
+                                ("combined", "")):
                 col = "ci_lo_db" if src == "combined" else f"{src}_lo_db"
                 if col in dw.columns and dw[col].notna().any():
                     out[f"ci_{src}"] = (_save(P.plot_confidence(dw, last, band, src), folder / f"ci_{src}.png"),
@@ -109,7 +110,9 @@ def _interval_summary(dw: pd.DataFrame) -> pd.DataFrame:
     rows = []
     for band, g in dw.groupby("band_mm"):
         row = {"band_mm": band, "windows": len(g)}
-        for src in ("scatter", "model", "placement"):
+        for src in ("scatter", "model", "placement", "contact", "track", "reference"):
+            if f"{src}_hi_db" not in g.columns:
+                continue
             lo, hi = g[f"{src}_lo_db"], g[f"{src}_hi_db"]
             row[f"{src}_half_width_db"] = float(np.nanmedian(0.5 * (hi - lo))) if hi.notna().any() else math.nan
         row["combined_half_width_db"] = float(np.nanmedian(0.5 * (g["ci_hi_db"] - g["ci_lo_db"])))
@@ -175,13 +178,25 @@ def write_report(res, path, figures: dict, cfg: MonitoringConfig = MonitoringCon
                      "growth_se_um_per_month"]].sort_values("growth_um_per_month", ascending=False) if len(gr) else gr)]
     p += [fig(k) for k in sorted(figures) if k.startswith("trend")]
     # 6 confidence
+    cal = res.calibration
     p += [f"<h2>{SECTION_TITLES[5]}</h2>",
-          "<p>Three sources, given separately and combined: the scatter between the day's runs (shrinks with more "
+          "<p>The sources, given separately and combined: the scatter between the day's runs (shrinks with more "
           "runs), the wheelset model's uncertainty (perturbed modal frequencies and damping ratios applied to the "
-          "same accelerations) and the accelerometers' placement (±10/30/50 mm). The last two are systematic: "
-          "averaging more runs does not shrink them. Median half-widths [dB]:</p>",
-          _table(_interval_summary(dw) if len(dw) else None), fig("averaging"), fig("ci_model"), fig("placement_detail"),
-          fig("ci_placement"), fig("ci_scatter"), fig("ci_combined")]
+          "same accelerations), the accelerometers' placement (±10/30/50 mm), the wheel–rail contact (wheel load, "
+          "rail-head radius) and the track (discrete supports, pad and ballast stiffness). All but the scatter are "
+          "systematic: averaging more runs does not shrink them"
+          + (", and the model's own error measured against a trolley on a calibration site (below)"
+             if len(cal) else
+             "; a trolley record of a calibration site (<code>--calibration-trolley</code>) adds the error the "
+             "estimator actually makes there") + ". Median half-widths [dB]:</p>",
+          _table(_interval_summary(dw) if len(dw) else None)]
+    if len(cal):
+        p += ["<p>Calibration against the trolley: per band, the day average's error (estimate − trolley) over the "
+              "site's windows, and the prediction interval of the truth around any other window's estimate "
+              "(<code>lo_db</code>, <code>hi_db</code>; Student's t, so a short site gives a wide interval). It "
+              "holds where the line is like the site.</p>", _table(cal), fig("ci_reference")]
+    p += [fig("averaging"), fig("ci_model"), fig("placement_detail"), fig("ci_placement"), fig("ci_scatter"),
+          fig("ci_combined")]
     # 7 consistency
     p += [f"<h2>{SECTION_TITLES[6]}</h2>",
           "<p>Where two estimates of the same rail disagree beyond their scatter.</p>", _table(res.flags)]
@@ -227,7 +242,8 @@ def write_monitoring(res, folder, cfg: MonitoringConfig = MonitoringConfig()) ->
                      ("grinding_effect", res.grinding_effect), ("day_sections", res.day_sections),
                      ("day_windows", res.day_windows), ("consistency_flags", res.flags), ("runs", res.runs),
                      ("model_versions", res.versions), ("version_changes", res.changes),
-                     ("outliers", getattr(res, "outliers", None))):
+                     ("outliers", getattr(res, "outliers", None)),
+                     ("calibration", res.calibration if len(res.calibration) else None)):
         if df is None:
             continue
         d = df.drop(columns=[c for c in ("cov",) if c in df.columns])

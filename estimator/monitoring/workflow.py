@@ -66,7 +66,7 @@ from estimator.monitoring.alignment import (Alignment, FeatureProfile, align_pro
                                             feature_profile)
 from estimator.monitoring.averaging import day_average, section_table
 from estimator.monitoring.config import MonitoringConfig, band_label
-from estimator.monitoring.confidence import variant_deltas, variant_spread, with_intervals
+from estimator.monitoring.confidence import variant_deltas, variant_spread, with_intervals, with_reference
 from estimator.monitoring.consistency import consistency_checks
 from estimator.monitoring.errors import MonitoringError, StoreError
 from estimator.monitoring.grinding import detect_grinding, grinding_effect
@@ -747,6 +747,9 @@ class MonitorResult:
     thresholds_um : dict
     sections : Sections
     alignment : DataFrame
+    calibration : DataFrame
+        The reference calibration applied to the window intervals
+        (:func:`~estimator.monitoring.confidence.reference_calibration`; empty without one).
     """
 
     line: str
@@ -770,6 +773,7 @@ class MonitorResult:
     alignment: pd.DataFrame
     consistency: Mapping = field(default_factory=dict)
     outliers: pd.DataFrame = field(default_factory=pd.DataFrame)
+    calibration: pd.DataFrame = field(default_factory=pd.DataFrame)
 
 
 def _thresholds(cfg: MonitoringConfig, est_cfg: EstimatorConfig | None = None) -> dict:
@@ -808,7 +812,8 @@ def _until(df: pd.DataFrame, as_of: str | None) -> pd.DataFrame:
 
 def monitor(store, *, line: str | None = None, section_range: tuple[float, float] | None = None,
             model_hash: str | None = None, cfg: MonitoringConfig = MonitoringConfig(),
-            estimator_config: EstimatorConfig | None = None, line_file=None, as_of: str | None = None) -> MonitorResult:
+            estimator_config: EstimatorConfig | None = None, line_file=None, as_of: str | None = None,
+            calibration: pd.DataFrame | None = None) -> MonitorResult:
     """A line's monitoring state from the store (module docstring).
 
     Parameters
@@ -828,6 +833,10 @@ def monitor(store, *, line: str | None = None, section_range: tuple[float, float
     as_of : str, optional
         ``YYYY-MM-DD``: the line as it was known on that day (only the survey days up to it): the growth and the
         grinding plan that were forecast then, to be checked against what happened afterwards.
+    calibration : pandas.DataFrame, optional
+        The estimate's error against a trolley on a calibration site
+        (:func:`~estimator.monitoring.confidence.reference_calibration`): added to every window's interval as the
+        measured systematic source (:func:`~estimator.monitoring.confidence.with_reference`).
     """
     from estimator.io import read_line
 
@@ -860,6 +869,8 @@ def monitor(store, *, line: str | None = None, section_range: tuple[float, float
     ds = _until(st.read("day_sections", line=line, model_hash=mh), as_of)
     if dw.empty or ds.empty or section_range is not None:
         dw, ds = day_tables(win, var, runs, cfg)
+    if calibration is not None and len(calibration):
+        dw = with_reference(dw, calibration)
     th = _thresholds(cfg, est_cfg)
     flags, checks = consistency_checks(win, _masked_share(runs), cfg)
     events, short = detect_grinding(dw, cfg)
@@ -882,7 +893,8 @@ def monitor(store, *, line: str | None = None, section_range: tuple[float, float
     return MonitorResult(line, mh, section_range, runs.drop_duplicates("run_id") if len(runs) else runs, dw, ds, win,
                          var, flags, events, short, effect, gr, fc, versions,
                          pd.concat(changes, ignore_index=True) if changes else pd.DataFrame(), th, sections, alignment,
-                         checks, outlying_estimates(win, cfg))
+                         checks, outlying_estimates(win, cfg),
+                         calibration if calibration is not None else pd.DataFrame())
 
 
 def reprocess(store, spec: IngestSpec, *, line: str | None = None, from_model: str | None = None, executor=None,
