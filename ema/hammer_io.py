@@ -4,7 +4,9 @@ A hammer test is a set of hits; in every hit the front-end records the force
 of the instrumented hammer and the response of every accelerometer. The lab
 exports them as UFF58 time histories (function type 1, one dataset per
 channel per hit, the hit number in the record-6 "version / sequence number"
-field, pyuff key ``ver_num``) and describes the channels in a separate table
+field, pyuff key ``ver_num``; files whose sequence number is the same in
+every dataset are numbered by load case or by order, see :func:`_hit_numbers`)
+and describes the channels in a separate table
 (:mod:`ema.channels`): the measuring directions, positions and FE nodes are
 taken from that table, the samples and the sampling from the file.
 
@@ -480,6 +482,38 @@ _SPEC_NAMES = {0: "unknown", 8: "displacement", 9: "reaction force", 11: "veloci
 _AXES = {1: (1.0, 0.0, 0.0), 2: (0.0, 1.0, 0.0), 3: (0.0, 0.0, 1.0)}
 
 
+def _hit_numbers(dsets: list[dict], p: str) -> list[int]:
+    """The hit of each dataset: its sequence number (``ver_num``), as the lab writes it.
+
+    Front-ends that export every hit with the same sequence number number them by the load case
+    (``load_case_id``) or only by their order in the file. So when the sequence number is the same in every
+    dataset and a channel occurs more than once, the load case is used if it tells the hits apart, else the
+    order: the k-th dataset of every channel is hit k — only when every channel occurs equally often (a lone
+    repeated dataset stays the error the per-hit check names). Either is logged.
+    """
+    ver = [int(d["ver_num"]) for d in dsets]
+    nodes = [int(d["rsp_node"]) for d in dsets]
+    if len(set(ver)) > 1 or len(set(zip(ver, nodes))) == len(dsets):
+        return ver
+    case = [int(d.get("load_case_id", 0) or 0) for d in dsets]
+    if len(set(case)) > 1 and len(set(zip(case, nodes))) == len(dsets):
+        log.warning("%s: every dataset has sequence number %d; the hits are numbered by their load case (%s)",
+                    p, ver[0], ", ".join(str(c) for c in sorted(set(case))))
+        return case
+    counts = {n: nodes.count(n) for n in set(nodes)}
+    if len(set(counts.values())) != 1:
+        return ver
+    seen: dict[int, int] = {}
+    order = []
+    for n in nodes:
+        seen[n] = seen.get(n, 0) + 1
+        order.append(seen[n])
+    log.warning("%s: every dataset has sequence number %d and no load case tells the hits apart; the %d hits are "
+                "numbered by their order in the file (the k-th dataset of each channel is hit k)", p, ver[0],
+                max(order))
+    return order
+
+
 def _read_uff58(path: Path, channels: pd.DataFrame) -> HammerTest:
     p = str(path)
     log.info("reading hammer test %s (%.1f MB)", p, path.stat().st_size / 1e6)
@@ -497,8 +531,8 @@ def _read_uff58(path: Path, channels: pd.DataFrame) -> HammerTest:
         )
     nodes = {int(r.node): r for r in channels.itertuples(index=False)}
     by_key: dict[tuple[int, int], dict] = {}
-    for d in dsets:
-        node, hit = int(d["rsp_node"]), int(d["ver_num"])
+    for d, hit in zip(dsets, _hit_numbers(dsets, p)):
+        node = int(d["rsp_node"])
         if node not in nodes:
             raise ChannelMismatchError(
                 f"{p}: {_dset_label(d)}: node {node} has data but no row in the channel table "

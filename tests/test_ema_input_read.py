@@ -7,6 +7,7 @@ an analytic FRF written by pyuff and read back.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import re
 import warnings
@@ -453,3 +454,22 @@ def test_read_frf_uff_errors(tmp_path):
     q.write_bytes(raw[: len(raw) // 3])
     with pytest.raises(UFFReadError, match=re.escape(str(q))):
         read_frf_uff(q)
+
+
+def test_hits_numbered_by_order_when_every_dataset_has_the_same_sequence_number(tmp_path, caplog):
+    """A front-end that writes sequence number 1 in every dataset (hit after hit, all channels each): the hits are
+    numbered by their order in the file (logged), and the samples are those of the file with proper numbers."""
+    ref_hist = small_histories(n_hits=3)
+    flat = [dataclasses.replace(h, hit=1) for h in ref_hist]
+    uff, csv = write_small(tmp_path, histories=flat)
+    with caplog.at_level(logging.WARNING, logger="ema"):
+        test = read_hammer(uff, csv)
+    assert "numbered by their order in the file" in caplog.text and str(uff) in caplog.text
+    ref = read_hammer(*write_small(tmp_path, name="ref.uff", histories=ref_hist))
+    assert test.hits == ref.hits == (1, 2, 3)
+    np.testing.assert_array_equal(test.force, ref.force)
+    np.testing.assert_array_equal(test.responses, ref.responses)
+    # a channel missing from one hit leaves the channels unevenly repeated: that stays an error
+    uneven = [h for h in flat if not (h is flat[4])]
+    with pytest.raises(ChannelMismatchError, match="appears twice"):
+        read_hammer(*write_small(tmp_path, name="uneven.uff", histories=uneven))
