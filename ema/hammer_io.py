@@ -5,7 +5,8 @@ of the instrumented hammer and the response of every accelerometer. The lab
 exports them as UFF58 time histories (function type 1, one dataset per
 channel per hit, the hit number in the record-6 "version / sequence number"
 field, pyuff key ``ver_num``; files whose sequence number is the same in
-every dataset are numbered by load case or by order, see :func:`_hit_numbers`)
+every dataset are numbered by load case or by order, see :func:`_hit_numbers`;
+data labelled in g, mm/s², kN or lbf are converted to SI, see :func:`_si_factor`)
 and describes the channels in a separate table
 (:mod:`ema.channels`): the measuring directions, positions and FE nodes are
 taken from that table, the samples and the sampling from the file.
@@ -482,6 +483,34 @@ _SPEC_NAMES = {0: "unknown", 8: "displacement", 9: "reaction force", 11: "veloci
 _AXES = {1: (1.0, 0.0, 0.0), 2: (0.0, 1.0, 0.0), 3: (0.0, 0.0, 1.0)}
 
 
+#: ordinate unit labels of time histories (lower case, no blanks) -> factor to the channel's SI unit
+_TO_SI = {"acceleration": {"m/s^2": 1.0, "m/s2": 1.0, "m/s**2": 1.0, "m/s\u00b2": 1.0, "mm/s^2": 1e-3,
+                           "mm/s2": 1e-3, "g": 9.80665},
+          "force": {"n": 1.0, "kn": 1e3, "lbf": 4.4482216152605}}
+
+
+def _si_factor(p: str, row, dsets: list[dict]) -> tuple[float, str]:
+    """The factor from a channel's unit in the file (its ordinate units label) to SI, and that label.
+
+    Front-ends often export accelerations in g. An empty or ``NONE`` label leaves the data as the channel table
+    says (SI); an unknown one too, with a warning; a channel labelled differently in different hits is an error.
+    """
+    labels = {str(d.get("ordinate_axis_units_lab", "") or "").strip() for d in dsets}
+    if len(labels) > 1:
+        raise ChannelMismatchError(f"{p}: channel {row.name!r} (node {row.node}) is in {sorted(labels)} in different "
+                                   f"hits; one unit per channel")
+    lab = labels.pop()
+    key = lab.lower().replace(" ", "")
+    if key in ("", "none"):
+        return 1.0, lab
+    factor = _TO_SI[row.quantity].get(key)
+    if factor is None:
+        log.warning("%s: channel %r (node %d): unit label %r not recognised; the data are taken in %s, as the channel "
+                    "table says", p, row.name, row.node, lab, row.unit)
+        return 1.0, lab
+    return factor, lab
+
+
 def _hit_numbers(dsets: list[dict], p: str) -> list[int]:
     """The hit of each dataset: its sequence number (``ver_num``), as the lab writes it.
 
@@ -613,12 +642,17 @@ def _read_uff58(path: Path, channels: pd.DataFrame) -> HammerTest:
     acc_nodes = channels.loc[channels["quantity"] == "acceleration", "node"].astype(int).tolist()
     force = np.empty((len(hits), n0))
     resp = np.empty((len(hits), len(acc_nodes), n0))
+    scale = {node: _si_factor(p, nodes[node], [by_key[(h, node)] for h in hits]) for node in nodes}
     for i, hit in enumerate(hits):
-        force[i] = by_key[(hit, fnode)]["data"]
+        force[i] = by_key[(hit, fnode)]["data"] * scale[fnode][0]
         for j, node in enumerate(acc_nodes):
-            resp[i, j] = by_key[(hit, node)]["data"]
+            resp[i, j] = by_key[(hit, node)]["data"] * scale[node][0]
+    converted = sorted({f"{nodes[n].quantity} from {lab}" for n, (f, lab) in scale.items() if f != 1.0})
+    if converted:
+        log.info("%s: converted to SI units: %s", p, ", ".join(converted))
+    history = (f"read_hammer {p}",) + ((f"converted to SI: {', '.join(converted)}",) if converted else ())
     test = HammerTest(fs=1.0 / dt0, time=_time_axis(t00, 1.0 / dt0, n0), channels=channels, force=force,
-                      responses=resp, hits=tuple(hits), source=p, history=(f"read_hammer {p}",))
+                      responses=resp, hits=tuple(hits), source=p, history=history)
     log.info("read %s: %d hits x %d channels + force, fs %g Hz, %d samples (%.3g s)",
              p, test.n_hits, test.n_channels, test.fs, n0, n0 * dt0)
     return test

@@ -473,3 +473,22 @@ def test_hits_numbered_by_order_when_every_dataset_has_the_same_sequence_number(
     uneven = [h for h in flat if not (h is flat[4])]
     with pytest.raises(ChannelMismatchError, match="appears twice"):
         read_hammer(*write_small(tmp_path, name="uneven.uff", histories=uneven))
+
+
+def test_accelerations_exported_in_g_are_read_in_si(tmp_path, caplog):
+    """A front-end exporting the accelerations in g (ordinate units label 'g') and the force in kN: the samples are
+    converted to m/s^2 and N (g = 9.80665 m/s^2), the conversion is logged and kept in the test's history."""
+    ref_hist = small_histories()
+    scaled = [dataclasses.replace(h, data=h.data / (9.80665 if h.quantity == "acceleration" else 1e3))
+              for h in ref_hist]
+    uff, csv = write_small(tmp_path, name="in_g.uff", binary=False, histories=scaled)
+    text = uff.read_text()
+    uff.write_text(re.sub(r"(?<= )m/s\^2(?= )", "g    ", text).replace(" N                   ", " kN                  "))
+    with caplog.at_level(logging.INFO, logger="ema"):
+        test = read_hammer(uff, csv)
+    ref = read_hammer(*write_small(tmp_path, name="si.uff", binary=False, histories=ref_hist))
+    # the file holds single precision: the scaled samples were rounded to float32 (relative 6e-8)
+    np.testing.assert_allclose(test.responses, ref.responses, rtol=2e-7, atol=0)
+    np.testing.assert_allclose(test.force, ref.force, rtol=2e-7, atol=0)
+    assert "acceleration from g" in caplog.text and "force from kN" in caplog.text
+    assert any("converted to SI" in h for h in test.history)
