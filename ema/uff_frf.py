@@ -11,7 +11,10 @@ The quantity follows the ordinate's specific data type (12 acceleration ->
 accelerance, 11 velocity -> mobility, 8 displacement -> receptance; the
 denominator must be a force, 13 or 9, or unknown, 0). When the file leaves the
 ordinate type unknown (0), the ordinate units label decides (``m/s^2/N``,
-``m/s/N``, ``m/N``); otherwise pass ``quantity=``. Data are taken as SI.
+``m/s/N``, ``m/N``, ``g/N``, ...); otherwise pass ``quantity=``. Data are
+converted to SI by their unit labels (numerator in g, mm/s², mm/s, mm or µm,
+denominator in kN or lbf: front-ends commonly export accelerance in g/N, as
+one label or as ``g`` over ``N``); unlabelled data are taken as SI.
 
 Exponential window.  An H1 estimated through an exponential window of decay
 ``a`` carries poles shifted by ``−a``; the identification removes the shift
@@ -52,7 +55,36 @@ _UNITS_TO_QUANTITY = {
 _FORCE_SPECS = {0, 9, 13}
 _QUANTITY_TO_SPEC = {"accelerance": 12, "mobility": 11, "receptance": 8}
 _QUANTITY_UNITS = {"accelerance": "m/s^2/N", "mobility": "m/s/N", "receptance": "m/N"}
+#: numerator unit labels (lower case, no blanks) -> (factor to SI, quantity); front-ends often write g/N
+_NUMERATOR_SI = {**{u: (1.0, "accelerance") for u in ("m/s^2", "m/s2", "m/s**2", "m/s\u00b2")},
+                 "mm/s^2": (1e-3, "accelerance"), "mm/s2": (1e-3, "accelerance"), "g": (9.80665, "accelerance"),
+                 "m/s": (1.0, "mobility"), "mm/s": (1e-3, "mobility"),
+                 "m": (1.0, "receptance"), "mm": (1e-3, "receptance"), "um": (1e-6, "receptance"),
+                 "\u00b5m": (1e-6, "receptance")}
+_DENOMINATOR_SI = {"n": 1.0, "kn": 1e3, "lbf": 4.4482216152605}
 _DECAY = re.compile(r"exp_window_decay\s*=\s*([0-9.eE+-]+)")
+
+
+def _frf_units(d: dict) -> tuple[float, str | None, str]:
+    """(factor to SI, quantity, label) of an FRF dataset from its ordinate and denominator unit labels.
+
+    ``g/N`` as one numerator label or as ``g`` over ``N``; a bracketed numerator (``(m/s^2)/N``) too. Labels it
+    does not know give factor 1 and no quantity (the data are taken as SI).
+    """
+    num = str(d.get("ordinate_axis_units_lab", "") or "").strip().lower().replace(" ", "")
+    den = str(d.get("orddenom_axis_units_lab", "") or "").strip().lower().replace(" ", "")
+    label = num + (f" / {den}" if den else "")
+    if den in ("", "none") and "/" in num:
+        head, _, tail = num.rpartition("/")
+        if tail in _DENOMINATOR_SI:
+            num, den = head, tail
+    if num.startswith("(") and num.endswith(")"):
+        num = num[1:-1]
+    top = _NUMERATOR_SI.get(num)
+    bottom = 1.0 if den in ("", "none") else _DENOMINATOR_SI.get(den)
+    if top is None or bottom is None:
+        return 1.0, None, label
+    return top[0] / bottom, top[1], label
 
 
 def _dir_label(code: int) -> str:
@@ -158,7 +190,7 @@ def read_frf_uff(path: str | os.PathLike, channels_csv=None, *, quantity: str | 
             quantity = _SPEC_TO_QUANTITY[spec]
         elif spec == 0:
             lab = str(first.get("ordinate_axis_units_lab", "")).strip().lower().replace(" ", "")
-            quantity = _UNITS_TO_QUANTITY.get(lab)
+            quantity = _frf_units(first)[1] or _UNITS_TO_QUANTITY.get(lab)
             if quantity is None:
                 raise FunctionTypeError(
                     f"{src}: cannot tell accelerance, mobility or receptance: ordinate type unknown (0) and units "
@@ -217,12 +249,16 @@ def read_frf_uff(path: str | os.PathLike, channels_csv=None, *, quantity: str | 
 
     data = np.empty((len(outs), len(ins), x0.size), complex)
     coh = np.empty(data.shape) if cohs else None
+    converted: set[str] = set()
     for i, o in enumerate(outs):
         for k, r in enumerate(ins):
             if (o, r) not in frfs:
                 raise ChannelMismatchError(f"{src}: no FRF for response {o[0]}:{_dir_label(o[1])} and reference "
                                            f"{r[0]}:{_dir_label(r[1])}")
-            data[i, k] = frfs[(o, r)]["data"]
+            factor, _, label = _frf_units(frfs[(o, r)])
+            if factor != 1.0:
+                converted.add(label)
+            data[i, k] = np.asarray(frfs[(o, r)]["data"]) * factor
             if coh is not None:
                 if (o, r) in cohs:
                     coh[i, k] = np.real(cohs[(o, r)]["data"])
@@ -238,8 +274,13 @@ def read_frf_uff(path: str | os.PathLike, channels_csv=None, *, quantity: str | 
         exp_window_decay = notes.pop() if notes else 0.0
     if not (np.isfinite(exp_window_decay) and exp_window_decay >= 0):
         raise ValueError(f"exp_window_decay must be a finite decay >= 0 [1/s], got {exp_window_decay!r}")
+    history = (f"read_frf_uff {src}",)
+    if converted:
+        note = f"converted to SI ({_QUANTITY_UNITS[quantity]}) from {', '.join(sorted(converted))}"
+        log.info("%s: %s", src, note)
+        history += (note,)
     frf = FrequencyResponse(freqs_hz=x0, data=data, outputs=tuple(out_labels), inputs=tuple(in_labels),
-                            quantity=quantity, coherence=coh, channels=channels, history=(f"read_frf_uff {src}",),
+                            quantity=quantity, coherence=coh, channels=channels, history=history,
                             exp_window_decay=float(exp_window_decay))
     log.info("read %s: %s", src, frf)
     return frf

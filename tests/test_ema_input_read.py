@@ -492,3 +492,21 @@ def test_accelerations_exported_in_g_are_read_in_si(tmp_path, caplog):
     np.testing.assert_allclose(test.force, ref.force, rtol=2e-7, atol=0)
     assert "acceleration from g" in caplog.text and "force from kN" in caplog.text
     assert any("converted to SI" in h for h in test.history)
+
+
+@pytest.mark.parametrize("units, denominator, spec, factor", [("g/N", None, 12, 9.80665), ("g", "N", 0, 9.80665),
+                                                             ("(m/s^2)/kN", None, 12, 1e-3), ("mm/N", None, 8, 1e-3)])
+def test_frf_units_of_the_front_end_are_converted_to_si(tmp_path, units, denominator, spec, factor):
+    """FRFs exported in g/N (one label, or g over N with the ordinate type left unknown), per kN, or in mm/N: read
+    in SI (the accelerance of the analytic toy to 1e-10), the quantity told by the units, the conversion kept in the
+    history."""
+    f = np.arange(40, 401) * 0.25
+    H = analytic_accelerance(TOY, f)
+    p = write_frf_file(tmp_path / "frf.uff", H / factor, f, spec=spec, units=units)
+    if denominator:
+        text = p.read_text()
+        p.write_text(text.replace(f"{'NONE':<20}", f"{denominator:<20}"))
+    frf = read_frf_uff(p)
+    assert frf.quantity == ("receptance" if units.startswith("mm") else "accelerance")
+    np.testing.assert_allclose(frf.data[:, 0, :], H, rtol=1e-10)
+    assert any("converted to SI" in h for h in frf.history)
