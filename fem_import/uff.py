@@ -459,8 +459,8 @@ def _numbers(path, text: str, n_min: int, kind, what: str, dataset: str, line: i
     try:
         vals = [kind(tok.replace("D", "E").replace("d", "e")) if kind is float else int(tok) for tok in text.split()]
     except ValueError:
-        raise FEReadError(path, f"{what}: {text.strip()!r} is not {n_min} or more "
-                          f"{'numbers' if kind is float else 'integers'}", dataset=dataset, line=line) from None
+        raise FEReadError(path, f"{what}: {text.strip()!r} holds a field that is not "
+                          f"{'a number' if kind is float else 'an integer'}", dataset=dataset, line=line) from None
     if len(vals) < n_min:
         raise FEReadError(path, f"{what}: {len(vals)} value(s) where {n_min} are expected: the record is "
                           f"truncated", dataset=dataset, line=line)
@@ -494,9 +494,10 @@ def _mode_2414(path, block: bytes, line: int, k: int) -> dict | None:
     if result != 8:
         log.warning("%s: dataset 2414 %s (mode %d) holds result type %d (%s); read as mode shape", path, label, k,
                     result, _SHAPE_RESULTS[result])
-    mode_n = _numbers(path, lines[11], 6, int, "record 10", where, line + 11)[5]
-    real = _numbers(path, lines[13], 4, float, "record 12", where, line + 13)
-    freq, mm = real[1], real[3]
+    ints = _numbers(path, lines[11], 0, int, "record 10", where, line + 11)
+    mode_n = ints[5] if len(ints) > 5 else None
+    real = _numbers(path, lines[13], 2, float, "record 12 (time, frequency, ...)", where, line + 13)
+    freq, mm = real[1], (real[3] if len(real) > 3 else 0.0)  # no modal mass: taken as mass-normalised (logged)
     nodes, vals = [], []
     i, data = 15, lines
     while i < len(data):
