@@ -422,3 +422,13 @@ def test_trend_plot_takes_a_zero_width_interval_that_rounding_made_negative():
     fig = plot_trend(ds, pd.DataFrame(columns=["section", "rail", "band_mm", "slope_um_per_day"]), pd.DataFrame(),
                      "s", "L", "30-100")
     assert len(fig.axes[0].lines) >= 1
+
+
+def test_a_calibration_site_the_reference_does_not_cover_is_a_named_error():
+    from estimator.monitoring.confidence import reference_calibration
+    from estimator.monitoring.errors import MonitoringError
+
+    errs = pd.DataFrame({"rail": ["L", "R"], "band_mm": ["30-100"] * 2, "window_m": [10.0, 11.0],
+                         "error_db": [0.5, 0.7]})
+    with pytest.raises(MonitoringError, match=r"calibration site 500-600 m.*covers 10-11 m"):
+        reference_calibration(errs, site=(500.0, 600.0))

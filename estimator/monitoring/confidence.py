@@ -55,6 +55,7 @@ import pandas as pd
 from scipy import stats
 
 from estimator.monitoring.averaging import MIN_VALID_SHARE, level_db
+from estimator.monitoring.errors import MonitoringError
 
 __all__ = ["SOURCES", "variant_deltas", "variant_spread", "with_intervals", "coverage", "coverage_table",
            "reference_calibration", "with_reference"]
@@ -148,10 +149,20 @@ def reference_calibration(errors: pd.DataFrame, *, site: tuple[float, float] | N
         ``band_mm, windows, mean_error_db, sd_error_db, lo_db, hi_db, from_m, to_m``: ``lo_db, hi_db`` are the
         offsets of the truth from an estimate, ``−m ∓ t s sqrt(1 + 1/n)`` (module docstring); NaN when the band
         has fewer than ``min_windows`` windows.
+
+    Raises
+    ------
+    MonitoringError
+        No compared window in the site.
     """
     e = errors[np.isfinite(errors["error_db"].to_numpy(float))]
     if site is not None:
         e = e[(e["window_m"] >= site[0]) & (e["window_m"] < site[1])]
+    if e.empty:
+        where = f" in the calibration site {site[0]:g}-{site[1]:g} m" if site is not None else ""
+        raise MonitoringError(f"no window compared with the reference{where}: nothing to calibrate with (the "
+                              f"reference covers {errors['window_m'].min():g}-{errors['window_m'].max():g} m)"
+                              if len(errors) else "the reference shares no window with the train's estimate")
     rows = []
     for band, g in e.groupby("band_mm", sort=True):
         v = g["error_db"].to_numpy(float)
