@@ -9,7 +9,9 @@ the run header as ``<common_properties>`` of the header block's comment
 
 from __future__ import annotations
 
+import gc
 import logging
+import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -42,6 +44,39 @@ def header_properties(comment: str) -> dict[str, str]:
     return out
 
 
+def _quiet_half_built_mdf(hook):
+    """An unraisable-exception hook that drops the AttributeError of a half-built asammdf ``MDF4.__del__``."""
+    def quiet(unraisable):
+        owner = getattr(unraisable.object, "__qualname__", "")
+        if unraisable.exc_type is AttributeError and owner.endswith("MDF4.__del__"):
+            return
+        hook(unraisable)
+    return quiet
+
+
+def open_mdf(path: Path):
+    """``asammdf.MDF(path)``, or :class:`RunFileError` naming the file and asammdf's reason.
+
+    A damaged file leaves asammdf's reader half built; its ``__del__`` then fails on attributes ``__init__``
+    never set, and Python would print that traceback on the user's terminal after the named error. The object
+    is collected here with that one report silenced.
+    """
+    from asammdf import MDF
+
+    reason = None
+    hook = sys.unraisablehook
+    sys.unraisablehook = _quiet_half_built_mdf(hook)
+    try:
+        try:
+            return MDF(str(path))
+        except Exception as exc:  # noqa: BLE001 - asammdf raises many kinds on a damaged file
+            reason = f"{type(exc).__name__}: {exc}"
+        gc.collect()  # the half-built reader dies with the exception's frames
+    finally:
+        sys.unraisablehook = hook
+    raise RunFileError(f"{path}: not a readable MDF 4 file ({reason}); the file may be truncated or corrupt")
+
+
 def read_raw(path: Path) -> RawRecording:
     """Every channel of an MDF 4 file (time stamps, values, unit) and the header's common properties.
 
@@ -50,13 +85,7 @@ def read_raw(path: Path) -> RawRecording:
     RunFileError
         The file is not a readable MDF 4 file (truncated, corrupt) — named with asammdf's reason.
     """
-    from asammdf import MDF
-
-    try:
-        mdf = MDF(str(path))
-    except Exception as exc:  # noqa: BLE001 - asammdf raises many kinds on a damaged file
-        raise RunFileError(f"{path}: not a readable MDF 4 file ({type(exc).__name__}: {exc}); the file may be "
-                           "truncated or corrupt") from None
+    mdf = open_mdf(path)
     try:
         if int(str(mdf.version).split(".")[0]) < 4:
             raise RunFileError(f"{path}: MDF version {mdf.version}; the field contract uses MDF 4")

@@ -25,14 +25,9 @@ def read_header(path) -> dict[str, str]:
         raise FileNotFoundError(f"run file {p} does not exist")
     fmt = sniff_format(p)
     if fmt == "mdf4":
-        from asammdf import MDF
+        from estimator.io.mdf4 import header_properties, open_mdf
 
-        from estimator.io.mdf4 import header_properties
-
-        try:
-            mdf = MDF(str(p))
-        except Exception as exc:  # noqa: BLE001 - asammdf raises many kinds on a damaged file
-            raise RunFileError(f"{p}: not a readable MDF 4 file ({type(exc).__name__}: {exc})") from None
+        mdf = open_mdf(p)
         try:
             header = header_properties(mdf.header.comment or "")
         finally:
