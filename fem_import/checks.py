@@ -30,6 +30,7 @@ The tolerances scale with the model, not with any particular mesh:
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -305,8 +306,9 @@ def check_mode_values(fe, *, source: str | None = None) -> None:
         raise FEReadError(
             src, f"mode {k + 1} ({fe.freqs_hz[k]:.4g} Hz) has the value {shapes[k, i, d]:.4g} at node "
             f"{int(fe.node_ids[i])} ({'xyz'[d]} translation): a mass-normalised translation of that size needs a "
-            f"node lighter than {1 / tr[k, i, d] ** 2:.3g} kg (limit |u| <= {MAX_MASS_NORMALISED_TRANSLATION:g} "
-            f"1/sqrt(kg)); the value is corrupt")
+            # 1/u² without an overflow warning for an absurd value (a damaged file)
+            f"node lighter than {math.exp(-2 * math.log(tr[k, i, d])):.3g} kg (limit |u| <= "
+            f"{MAX_MASS_NORMALISED_TRANSLATION:g} 1/sqrt(kg)); the value is corrupt")
     f = np.asarray(fe.freqs_hz, float)
     flat = shapes.reshape(len(f), -1)
     norm = np.linalg.norm(flat, axis=1)
