@@ -82,3 +82,26 @@ def test_missing_and_bad_files_are_named(inputs, capsys, tmp_path):
     code = main(["-q", "field", "estimate", "--run", str(sr.path), "--sensors", str(sensors), "--model", str(bad),
                  "--out", str(tmp_path / "o")])
     assert code == 1 and "bad.npz" in capsys.readouterr().err and not (tmp_path / "o").exists()
+
+
+def test_the_summary_says_whether_the_trailing_wheelset_agrees():
+    """A stretch above the threshold on the leading wheelset is printed with the trailing wheelset's value, or with
+    the plain statement that the trailing estimate is not above the threshold there (the two disagree)."""
+    from types import SimpleNamespace
+
+    from railmodal.field_commands import summarise_estimate
+
+    def row(role, rail, pk):
+        return {"wheelset": 1 if role == "leading" else 2, "role": role, "model": "vertical_lateral",
+                "stretch": "curve C1", "rail": rail, "band_mm": "30-100", "median_pk_pk_um": pk,
+                "dominant_wavelength_mm": 50.0, "peak_prominence_db": 9.0, "speed_m_s": 9.1, "frequency_hz": 182.0,
+                "mechanism": "P2 resonance", "nearest": "P2", "nearest_hz": 180.0}
+
+    corr = pd.DataFrame([row("leading", "L", 11.4), row("leading", "R", 23.3), row("trailing", "R", 21.9)])
+    est = SimpleNamespace(run_id="r", duration_s=40.0, direction="forward", leading=1, masked_share={"run": 0.0},
+                          qc=pd.DataFrame(), wheelbase_m=2.1, wheelbase_source="given", band_hz=(10.0, 400.0),
+                          lambda_min_m=0.02, skipped=(), corrugation=corr, models=("vertical_lateral",))
+    lines = [ln for ln in summarise_estimate(est) if ln.startswith("corrugated")]
+    assert len(lines) == 2
+    assert "rail L" in lines[0] and "NOT above the threshold on the trailing wheelset" in lines[0]
+    assert "rail R" in lines[1] and "trailing wheelset 21.9 um" in lines[1]
