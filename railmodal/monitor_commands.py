@@ -20,6 +20,7 @@ per-file replacement, ``--out`` through a temporary folder renamed at the end).
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from pathlib import Path
@@ -148,10 +149,10 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
         site = tuple(args.calibration_site) if args.calibration_site else None
         calibration = reference_calibration(comp.windows, site=site)
         for _, r in calibration.iterrows():
-            state = (f"truth within [{r['lo_db']:+.2f}, {r['hi_db']:+.2f}] dB of an estimate" if r["lo_db"] == r["lo_db"]
-                     else "too few windows: not calibrated")
-            print(f"  calibration {r['band_mm']:>8s} mm on {r['from_m']:.0f}-{r['to_m']:.0f} m: {r['windows']} windows, "
-                  f"error {r['mean_error_db']:+.2f} ± {r['sd_error_db']:.2f} dB: {state}")
+            state = (f"truth within [{r['lo_db']:+.2f}, {r['hi_db']:+.2f}] dB of an estimate"
+                     if math.isfinite(r["lo_db"]) else "too few windows: not calibrated")
+            print(f"  calibration {r['band_mm']:>8s} mm on {r['from_m']:.0f}-{r['to_m']:.0f} m: {r['windows']} "
+                  f"windows, error {r['mean_error_db']:+.2f} ± {r['sd_error_db']:.2f} dB: {state}")
     elif args.calibration_site:
         raise ValueError("--calibration-site needs --calibration-trolley (the trolley record of the site)")
     res = monitor(store, line=args.line_id, section_range=tuple(args.section) if args.section else None,

@@ -483,7 +483,8 @@ def test_accelerations_exported_in_g_are_read_in_si(tmp_path, caplog):
               for h in ref_hist]
     uff, csv = write_small(tmp_path, name="in_g.uff", binary=False, histories=scaled)
     text = uff.read_text()
-    uff.write_text(re.sub(r"(?<= )m/s\^2(?= )", "g    ", text).replace(" N                   ", " kN                  "))
+    in_g = re.sub(r"(?<= )m/s\^2(?= )", "g    ", text)
+    uff.write_text(in_g.replace(" N                   ", " kN                  "))
     with caplog.at_level(logging.INFO, logger="ema"):
         test = read_hammer(uff, csv)
     ref = read_hammer(*write_small(tmp_path, name="si.uff", binary=False, histories=ref_hist))

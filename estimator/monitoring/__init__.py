@@ -60,7 +60,8 @@ from estimator.monitoring.workflow import (DayReference, IngestResult, IngestSpe
 __all__ = [
     "Alignment", "AlignmentStage", "FeatureProfile", "ShiftFit", "align_profiles", "align_to_line", "feature_profile",
     "day_average", "section_table", "MonitoringConfig", "coverage", "variant_deltas", "variant_spread",
-    "with_intervals", "reference_calibration", "with_reference", "consistency_checks", "AlignmentError", "MonitoringConfigError", "MonitoringError",
+    "with_intervals", "reference_calibration", "with_reference", "consistency_checks", "AlignmentError",
+    "MonitoringConfigError", "MonitoringError",
     "StoreError", "TrolleyReferenceError", "detect_grinding", "grinding_effect", "MonitoringStore", "forecast",
     "growth", "DayReference", "IngestResult", "IngestSpec", "MonitorResult", "RunResult", "ingest", "monitor",
     "process_run", "reprocess", "update_days",
