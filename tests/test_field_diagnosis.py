@@ -41,16 +41,18 @@ CHANNELS = pd.DataFrame([("ACC_W1L_Z", "acceleration", "g", 1, "L", "z", 0.0, -0
                          ("ACC_W1R_Y", "acceleration", "g", 1, "R", "y", 0.0, 0.97, 0.0, 9.80665)],
                         columns=["name", "quantity", "unit", "wheelset", "side", "direction", "x", "y", "z",
                                  "sensitivity"])
+CHANNELS_2 = CHANNELS.assign(name=CHANNELS["name"].str.replace("W1", "W2"), wheelset=2)
 CFG = DiagnosisConfig(workers=2)
 
 
-@functools.lru_cache(maxsize=1)
-def blocks():
+@functools.lru_cache(maxsize=2)
+def blocks(wheelset: int = 1):
+    """The control wheelset's transfer blocks for the channels of wheelset 1 (``CHANNELS``) or 2 (``CHANNELS_2``)."""
     from test_estimator_synthetic import control_model
 
     ec = EstimatorConfig()
-    return wheelset_blocks(control_model(), CHANNELS, "vertical_lateral", FS, f_lo=ec.f_lo_hz, f_hi=ec.f_hi(FS),
-                           alpha=ec.regularisation, df=CFG.transfer_df_hz)
+    return wheelset_blocks(control_model(), CHANNELS if wheelset == 1 else CHANNELS_2, "vertical_lateral", FS,
+                           f_lo=ec.f_lo_hz, f_hi=ec.f_hi(FS), alpha=ec.regularisation, df=CFG.transfer_df_hz)
 
 
 def roughness_psd(k: np.ndarray, level: float) -> np.ndarray:
@@ -287,17 +289,7 @@ def test_the_calibrated_estimator_uses_the_transfer_function_the_diagnosis_fitte
 
 
 # --------------------------------------------------------------------------- the bogie's rail coupling
-CHANNELS_2 = CHANNELS.assign(name=CHANNELS["name"].str.replace("W1", "W2"), wheelset=2)
 WHEELBASE = 2.1
-
-
-@functools.lru_cache(maxsize=1)
-def blocks_2():
-    from test_estimator_synthetic import control_model
-
-    ec = EstimatorConfig()
-    return wheelset_blocks(control_model(), CHANNELS_2, "vertical_lateral", FS, f_lo=ec.f_lo_hz, f_hi=ec.f_hi(FS),
-                           alpha=ec.regularisation, df=CFG.transfer_df_hz)
 
 
 def test_coupled_blocks_equal_the_estimators_coupled_inversion():
@@ -319,7 +311,7 @@ def test_coupled_blocks_equal_the_estimators_coupled_inversion():
     n = bl.f.size
     C = rail_coupling(own.freqs_hz, tf, WHEELBASE, own.sides, other.sides, th, th)
     want = np.concatenate([own.T, C @ other.P], axis=2)[1:n + 1]
-    got = bl.coupled_transfer(blocks_2(), tf, th, k, WHEELBASE)
+    got = bl.coupled_transfer(blocks(2), tf, th, k, WHEELBASE)
     sel = (bl.f > 20) & (bl.f < 350)
     rel = np.abs(got[sel] - want[sel]) / np.abs(want[sel]).max(axis=0, keepdims=True)
     assert got.shape == (n, 2, 6) and rel.max() < 1e-6
@@ -354,7 +346,7 @@ def test_rail_coupling_of_the_bogie_against_a_direct_solution():
     from receptance.track import beam_section, green_function, support_stiffness_per_metre
 
     speed = 10.0
-    bl, bl2 = blocks(), blocks_2()
+    bl, bl2 = blocks(), blocks(2)
     tf, k = Trackform(), ContactParameters().contact().stiffness
     nper = int(round(CFG.window_m / speed * FS))
     f = np.fft.rfftfreq(nper, 1 / FS)[1:]
