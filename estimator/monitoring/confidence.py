@@ -208,6 +208,16 @@ def with_reference(intervals: pd.DataFrame, calibration: pd.DataFrame) -> pd.Dat
     return out
 
 
+def _against_truth(intervals: pd.DataFrame, truth: pd.DataFrame, unit: str, by: tuple[str, ...],
+                   columns: tuple[str, str]) -> pd.DataFrame:
+    """The interval rows joined with the truth's level (``truth_db``), where the interval ``columns`` and the truth
+    are defined (a lower bound of −inf, below the noise floor, counts as defined)."""
+    keys = [k for k in by if k in truth.columns] + ["rail", "band_mm", unit]
+    j = intervals.merge(truth[keys + ["level_db"]].rename(columns={"level_db": "truth_db"}), on=keys, how="inner")
+    lo, hi = columns
+    return j[~np.isnan(j[lo]) & np.isfinite(j[hi]) & np.isfinite(j["truth_db"])]
+
+
 def coverage(intervals: pd.DataFrame, truth: pd.DataFrame, *, unit: str = "window_m",
              columns: tuple[str, str] = ("ci_lo_db", "ci_hi_db"), by: tuple[str, ...] = ("date",)) -> pd.DataFrame:
     """Share of units whose truth level lies inside the interval, per band (and ``by``).
@@ -216,10 +226,8 @@ def coverage(intervals: pd.DataFrame, truth: pd.DataFrame, *, unit: str = "windo
     estimate's noise floor (:mod:`~estimator.monitoring.floor`: lower bound −inf, the estimate its upper bound)
     counts as covered when the truth is at most its upper bound.
     """
-    keys = [k for k in by if k in truth.columns] + ["rail", "band_mm", unit]
-    j = intervals.merge(truth[keys + ["level_db"]].rename(columns={"level_db": "truth_db"}), on=keys, how="inner")
     lo, hi = columns
-    j = j[~np.isnan(j[lo]) & np.isfinite(j[hi]) & np.isfinite(j["truth_db"])]
+    j = _against_truth(intervals, truth, unit, by, columns)
     j["covered"] = (j["truth_db"] >= j[lo]) & (j["truth_db"] <= j[hi])
     g = j.groupby("band_mm")
     return pd.DataFrame({"windows": g.size(), "covered": g["covered"].sum(),
@@ -245,9 +253,7 @@ def coverage_table(intervals: pd.DataFrame, truth: pd.DataFrame, *, unit: str = 
                              _hi=L + np.maximum(0.0, intervals[hi].fillna(0.0)))
         out[f"coverage_{src}_alone"] = coverage(t, truth, unit=unit, columns=("_lo", "_hi"), by=by
                                                 ).set_index("band_mm")["coverage"]
-    keys = [k for k in by if k in truth.columns] + ["rail", "band_mm", unit]
-    j = intervals.merge(truth[keys + ["level_db"]].rename(columns={"level_db": "truth_db"}), on=keys, how="inner")
-    j = j[~np.isnan(j["ci_lo_db"]) & np.isfinite(j["ci_hi_db"]) & np.isfinite(j["truth_db"])]
+    j = _against_truth(intervals, truth, unit, by, ("ci_lo_db", "ci_hi_db"))
     if "floor_status" in j.columns:
         out["below_floor"] = j.assign(_b=j["floor_status"] == "below floor").groupby("band_mm")["_b"].sum()
     g = j.assign(_err=j["level_db"] - j["truth_db"], _below=j["truth_db"] < j["ci_lo_db"],
