@@ -279,6 +279,11 @@ def _align(est, feats: dict[int, FeatureProfile], reference: DayReference | None
     return out, ref, note
 
 
+def _with_wheelbase(field_model, wheelbase_m: float):
+    """The field model with the wheelbase given instead of measured; the memo of transfer functions is shared."""
+    return replace(field_model, config=field_model.config.replace(wheelbase_m=wheelbase_m))
+
+
 def process_run(path, spec: IngestSpec, reference: DayReference | None = None, *, uncertainty: bool = False,
                 wheelbase: BogieWheelbase | None = None) -> RunResult:
     """Estimate, align and tabulate one run (one task of :func:`ingest`; module docstring).
@@ -308,10 +313,7 @@ def process_run(path, spec: IngestSpec, reference: DayReference | None = None, *
     ctx = run_context(spec)
     cfg = spec.monitoring
     header: dict = {}
-    fm = ctx.field_model
-    if wheelbase is not None:
-        # the same transfer functions (the memo is shared): only the wheelbase is given instead of measured
-        fm = replace(fm, config=fm.config.replace(wheelbase_m=wheelbase.wheelbase_m))
+    fm = ctx.field_model if wheelbase is None else _with_wheelbase(ctx.field_model, wheelbase.wheelbase_m)
     try:
         header = read_header(path)
         run = read_run(path, fm.sensors, direction=spec.direction)
@@ -351,11 +353,10 @@ def process_run(path, spec: IngestSpec, reference: DayReference | None = None, *
         t0 = time.perf_counter()
         vs = ctx.uncertainty_variants()
         if wheelbase is not None:
-            vs = [replace(v, field_model=replace(v.field_model, config=v.field_model.config.replace(
-                wheelbase_m=wheelbase.wheelbase_m))) for v in vs]
+            vs = [replace(v, field_model=_with_wheelbase(v.field_model, wheelbase.wheelbase_m)) for v in vs]
         # the noise floor with the run's own wheelbase (sensor noise alone has no lead/trail correlation to measure)
-        floor_fm = replace(fm, config=fm.config.replace(wheelbase_m=float(est.wheelbase_m)))
-        variants, problems = variant_windows(run, vs, accepted, cfg, field_model=floor_fm)
+        variants, problems = variant_windows(run, vs, accepted, cfg,
+                                             field_model=_with_wheelbase(fm, float(est.wheelbase_m)))
         if len(variants):
             variants = variants[variants["wheelset"].isin(list(accepted))]
             variants = variants.drop(columns=["speed_m_s", "lr_correlation", "role"]).assign(
