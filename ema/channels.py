@@ -36,6 +36,7 @@ __all__ = [
     "REQUIRED_COLUMNS",
     "OPTIONAL_COLUMNS",
     "CHANNEL_QUANTITIES",
+    "UNIT_TO_SI",
     "validate_channels",
     "read_channels",
     "read_table_csv",
@@ -52,6 +53,12 @@ OPTIONAL_COLUMNS: tuple[str, ...] = ("fe_node", "sensitivity", "setup")
 CHANNEL_QUANTITIES: dict[str, tuple[str, ...]] = {
     "force": ("N",),
     "acceleration": ("m/s^2", "m/s2", "m/s**2", "m/s\u00b2"),
+}
+#: Unit labels front-ends write (lower case, no blanks) -> factor to the quantity's SI unit (data in g, kN, ...).
+UNIT_TO_SI: dict[str, dict[str, float]] = {
+    "acceleration": {"m/s^2": 1.0, "m/s2": 1.0, "m/s**2": 1.0, "m/s\u00b2": 1.0, "mm/s^2": 1e-3, "mm/s2": 1e-3,
+                     "g": 9.80665},
+    "force": {"n": 1.0, "kn": 1e3, "lbf": 4.4482216152605},
 }
 #: Largest node number: UFF node fields are I10 (and FE codes use 32-bit labels).
 MAX_NODE = 2**31 - 1

@@ -36,7 +36,7 @@ import pandas as pd
 
 from fem_import.uff_text import DatasetSpan, fortran_field_problem, prepare_for_pyuff, unreadable_field
 
-from .channels import read_channels, validate_channels
+from .channels import UNIT_TO_SI, read_channels, validate_channels
 
 __all__ = [
     "HammerTest",
@@ -483,12 +483,6 @@ _SPEC_NAMES = {0: "unknown", 8: "displacement", 9: "reaction force", 11: "veloci
 _AXES = {1: (1.0, 0.0, 0.0), 2: (0.0, 1.0, 0.0), 3: (0.0, 0.0, 1.0)}
 
 
-#: ordinate unit labels of time histories (lower case, no blanks) -> factor to the channel's SI unit
-_TO_SI = {"acceleration": {"m/s^2": 1.0, "m/s2": 1.0, "m/s**2": 1.0, "m/s\u00b2": 1.0, "mm/s^2": 1e-3,
-                           "mm/s2": 1e-3, "g": 9.80665},
-          "force": {"n": 1.0, "kn": 1e3, "lbf": 4.4482216152605}}
-
-
 def _si_factor(p: str, row, dsets: list[dict]) -> tuple[float, str]:
     """The factor from a channel's unit in the file (its ordinate units label) to SI, and that label.
 
@@ -503,7 +497,7 @@ def _si_factor(p: str, row, dsets: list[dict]) -> tuple[float, str]:
     key = lab.lower().replace(" ", "")
     if key in ("", "none"):
         return 1.0, lab
-    factor = _TO_SI[row.quantity].get(key)
+    factor = UNIT_TO_SI[row.quantity].get(key)
     if factor is None:
         log.warning("%s: channel %r (node %d): unit label %r not recognised; the data are taken in %s, as the channel "
                     "table says", p, row.name, row.node, lab, row.unit)

@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .channels import read_channels, validate_channels
+from .channels import UNIT_TO_SI, read_channels, validate_channels
 from .frf import QUANTITIES, FrequencyResponse
 from .hammer_io import ChannelMismatchError, FunctionTypeError, SamplingError, UFFReadError, _read_uff_sets
 
@@ -56,12 +56,11 @@ _FORCE_SPECS = {0, 9, 13}
 _QUANTITY_TO_SPEC = {"accelerance": 12, "mobility": 11, "receptance": 8}
 _QUANTITY_UNITS = {"accelerance": "m/s^2/N", "mobility": "m/s/N", "receptance": "m/N"}
 #: numerator unit labels (lower case, no blanks) -> (factor to SI, quantity); front-ends often write g/N
-_NUMERATOR_SI = {**{u: (1.0, "accelerance") for u in ("m/s^2", "m/s2", "m/s**2", "m/s\u00b2")},
-                 "mm/s^2": (1e-3, "accelerance"), "mm/s2": (1e-3, "accelerance"), "g": (9.80665, "accelerance"),
+_NUMERATOR_SI = {**{u: (f, "accelerance") for u, f in UNIT_TO_SI["acceleration"].items()},
                  "m/s": (1.0, "mobility"), "mm/s": (1e-3, "mobility"),
                  "m": (1.0, "receptance"), "mm": (1e-3, "receptance"), "um": (1e-6, "receptance"),
                  "\u00b5m": (1e-6, "receptance")}
-_DENOMINATOR_SI = {"n": 1.0, "kn": 1e3, "lbf": 4.4482216152605}
+_DENOMINATOR_SI = UNIT_TO_SI["force"]
 _DECAY = re.compile(r"exp_window_decay\s*=\s*([0-9.eE+-]+)")
 
 
