@@ -41,7 +41,6 @@ __all__ = ["BogieWheelbase", "bogie_key", "known_wheelbases", "is_wheelbase_fail
 MAX_SPREAD_M = 0.05
 
 
-
 @dataclass(frozen=True)
 class BogieWheelbase:
     """A bogie's wheelbase from its other runs: value, number of runs, spread and a sentence saying so."""
