@@ -11,6 +11,11 @@ moduli ``E* = E(1+jη_r)``, ``G* = E*/(2(1+ν))`` (eq. 2.31).  It rests either
   ``L_s k_eq*(Ω)`` (the same spring–mass–spring per support), which shows the
   pinned–pinned resonance the continuous model cannot (thesis §1.2, eq. 1.2).
 
+Eq. 2.32's loss factor is the same at every frequency, which no causal material has; with
+``Trackform.loss_reference_hz`` set, the layers follow the causal constant-loss law instead
+(:func:`layer_dispersion`: the same loss factor, a stiffness rising with frequency, the table's value at
+the reference frequency).
+
 Eq. 2.33 is used with ``E* I`` in the bending term (the thesis prints
 ``E_r^*`` alone, a dropped ``I``) and ``ρ_r I`` rotary inertia.  With
 ``w, Φ ∝ exp(-jkx)`` (eq. 2.35) the wavenumber-domain solution for a unit
@@ -47,6 +52,7 @@ __all__ = [
     "BeamSection",
     "beam_section",
     "support_stiffness_per_metre",
+    "layer_dispersion",
     "wavenumber_roots",
     "green_function",
     "track_receptance",
@@ -103,21 +109,45 @@ def beam_section(trackform: Trackform, direction: str = "vertical") -> BeamSecti
 def support_stiffness_per_metre(f_hz, trackform: Trackform = Trackform(), direction: str = "vertical") -> np.ndarray:
     """Equivalent continuous support stiffness ``k_eq*(Ω)`` [N/m²], eq. 2.34 (with eq. 2.32).
 
-    Multiply by ``L_s`` for the dynamic stiffness of one discrete support.
+    Multiply by ``L_s`` for the dynamic stiffness of one discrete support. With
+    ``trackform.loss_reference_hz`` set, each layer's ``K (1 + jη)`` of eq. 2.32 becomes the causal
+    constant-loss law :func:`layer_dispersion` (same loss factor, stiffness rising with frequency).
     """
     _check_direction(direction)
     tf = trackform
-    w = 2 * np.pi * np.asarray(f_hz, dtype=float)
+    f = np.asarray(f_hz, dtype=float)
+    w = 2 * np.pi * f
     L = tf.support_spacing
     if direction == "vertical":
         Krp, Crp, Ksp, Csp = tf.pad_stiffness_z, tf.pad_damping_z, tf.subplate_stiffness_z, tf.subplate_damping_z
     else:
         Krp, Crp, Ksp, Csp = tf.pad_stiffness_y, tf.pad_damping_y, tf.subplate_stiffness_y, tf.subplate_damping_y
-    krp = Krp / L * (1 + 1j * tf.pad_loss_factor)
-    ksp = Ksp / L * (1 + 1j * tf.subplate_loss_factor)
+    krp = Krp / L * (1 + 1j * tf.pad_loss_factor) * layer_dispersion(f, tf.pad_loss_factor, tf.loss_reference_hz)
+    ksp = Ksp / L * (1 + 1j * tf.subplate_loss_factor) * layer_dispersion(f, tf.subplate_loss_factor,
+                                                                           tf.loss_reference_hz)
     pad = krp + 1j * w * Crp / L
     sub = ksp + 1j * w * Csp / L - w**2 * tf.baseplate_mass / L
     return pad * sub / (krp + ksp + 1j * w * (Crp + Csp) / L - w**2 * tf.baseplate_mass / L)
+
+
+#: Below this frequency a dispersive layer keeps its stiffness there: the power law holds over the band a pad is
+#: characterised in, not down to a static stiffness of zero.
+DISPERSION_FLOOR_HZ = 1.0
+
+
+def layer_dispersion(f_hz, loss_factor: float, reference_hz: float | None) -> np.ndarray | float:
+    """Storage-stiffness ratio ``(f / f_ref)^{2 arctan(η)/π}`` of a causal constant-loss layer (1 when ``None``).
+
+    Kjartansson's constant-Q law (*J. Geophys. Res.* 84, 1979): ``K(f) ∝ (j f / f_ref)^{2γ}``, ``γ =
+    arctan(η)/π``, has the phase ``arctan η`` of eq. 2.32 at every frequency and, unlike eq. 2.32, a causal
+    impulse response: Kramers–Kronig ties the loss to a stiffness rising by ``2 arctan(η)/π ≈ 2η/π`` per neper
+    of frequency. Multiplying eq. 2.32's ``K (1 + jη)`` by this ratio gives that law with the table's value at
+    ``f_ref``. Frequencies below :data:`DISPERSION_FLOOR_HZ` take its value.
+    """
+    if reference_hz is None:
+        return 1.0
+    f = np.maximum(np.abs(np.asarray(f_hz, dtype=float)), DISPERSION_FLOOR_HZ)
+    return (f / float(reference_hz)) ** (2.0 * np.arctan(loss_factor) / np.pi)
 
 
 def wavenumber_roots(omega, section: BeamSection, k_support) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -10,7 +10,8 @@ File format (:func:`load_trackform`)
 A TOML (``.toml``) or JSON (``.json``) file whose keys are exactly the
 field names of :class:`Trackform`, all in SI units, either at the top level
 or inside a ``[trackform]`` table / ``{"trackform": {...}}`` object.  Every
-field must be present (no silent defaults from a file), no unknown key is
+field must be present (no silent defaults from a file) except the optional
+``loss_reference_hz`` (absent: eq. 2.32's constant loss), no unknown key is
 accepted, and every value must be a finite number > 0 inside its physical range
 (:data:`PLAUSIBLE`, :func:`check_trackform`: refused outside it, a warning
 outside the typical range; a UTF-8 byte-order mark is accepted)::
@@ -84,6 +85,14 @@ class Trackform:
         Subplate viscous damping per support ``C_sp`` [N s/m].
     subplate_loss_factor : float
         ``η_sp`` [-].
+    loss_reference_hz : float or None
+        ``None`` (default): every loss factor is frequency independent, eq. 2.31–2.32 as written. A frequency
+        ``f_ref`` [Hz]: the pad and subplate follow the causal constant-loss law instead (Kramers–Kronig: a
+        loss that is the same at every frequency needs a storage stiffness rising with frequency, the dynamic
+        stiffening of elastomers), ``K(f) = K (1 + jη) (f / f_ref)^{2 arctan(η)/π}`` (Kjartansson, *J.
+        Geophys. Res.* 84, 1979, the constant-Q model), so that the table's ``K`` holds at ``f_ref``, the
+        frequency at which the layer was characterised. :func:`receptance.track.support_stiffness_per_metre`
+        applies it. Optional in a trackform file (absent = ``None``).
     """
 
     rail_mass: float = 49.9
@@ -107,10 +116,17 @@ class Trackform:
     subplate_damping_z: float = 2.8e3
     subplate_damping_y: float = 1.4e3
     subplate_loss_factor: float = 0.20
+    loss_reference_hz: float | None = None
 
     def __post_init__(self) -> None:
         for f in fields(self):
+            if f.name in OPTIONAL and getattr(self, f.name) is None:
+                continue
             _check_value(f.name, getattr(self, f.name), "<Trackform(...)>")
+
+
+#: Trackform fields a file may leave out (their default, ``None``, means "not modelled").
+OPTIONAL = ("loss_reference_hz",)
 
 
 def _check_value(key: str, value, source: str) -> float:
@@ -152,6 +168,8 @@ PLAUSIBLE: dict[str, dict[str, tuple]] = {
     "subplate_damping_z": {"physical": (1.0, 1e7), "typical": (1e2, 1e5), "unit": "N s/m"},
     "subplate_damping_y": {"physical": (1.0, 1e7), "typical": (1e2, 1e5), "unit": "N s/m"},
     "subplate_loss_factor": {"physical": (0.0, 1.0), "typical": (0.05, 0.5), "unit": ""},
+    # pads are characterised from a few Hz (EN 13146-9 low-frequency stiffness) to ~1 kHz (ISO 10846 methods)
+    "loss_reference_hz": {"physical": (0.01, 1e5), "typical": (1.0, 3000.0), "unit": "Hz"},
 }
 
 
@@ -191,6 +209,8 @@ def check_trackform(trackform: "Trackform", source: str = "<Trackform>") -> "Tra
 
     for name, spec in PLAUSIBLE.items():
         v = getattr(trackform, name)
+        if v is None:  # an optional field left out
+            continue
         lo, hi = spec["physical"]
         unit = spec["unit"]
         lo_open = lo == 0.0 or spec.get("open", False)  # a zero stiffness, mass or loss factor is no parameter
@@ -219,8 +239,8 @@ def check_trackform(trackform: "Trackform", source: str = "<Trackform>") -> "Tra
 
 
 def trackform_to_dict(trackform: Trackform) -> dict[str, float]:
-    """Return the field → value dictionary a trackform file must contain (SI units)."""
-    return asdict(trackform)
+    """Return the field → value dictionary a trackform file must contain (SI units; optional fields when set)."""
+    return {k: v for k, v in asdict(trackform).items() if not (k in OPTIONAL and v is None)}
 
 
 def load_trackform(path: str | Path) -> Trackform:
@@ -280,8 +300,8 @@ def load_trackform(path: str | Path) -> Trackform:
     unknown = sorted(set(raw) - set(names))
     if unknown:
         raise TrackformError(f"{path}: unknown trackform key(s) {unknown}; allowed keys: {names}")
-    missing = [n for n in names if n not in raw]
+    missing = [n for n in names if n not in raw and n not in OPTIONAL]
     if missing:
         raise TrackformError(f"{path}: missing trackform key(s) {missing}")
-    values = {n: _check_value(n, raw[n], str(path)) for n in names}
+    values = {n: _check_value(n, raw[n], str(path)) for n in names if n in raw}
     return check_trackform(Trackform(**values), str(path))

@@ -79,3 +79,50 @@ def test_eq_2_34_is_pad_in_series_with_loaded_subplate():
         z1 = K1 / 0.75 * (1 + 0.13j) + 1j * w * C1 / 0.75
         z2 = K2 / 0.75 * (1 + 0.20j) + 1j * w * C2 / 0.75 - w**2 * 15 / 0.75
         np.testing.assert_allclose(support_stiffness_per_metre(f, tf, d), 1 / (1 / z1 + 1 / z2), rtol=1e-12)
+
+
+def test_causal_layers_obey_bode_and_meet_eq_2_32_at_the_reference():
+    """Constant-loss layers: phase arctan(eta) everywhere and the gain slope Bode's relation ties to it.
+
+    Oracle: for a causal minimum-phase law whose log-gain has a constant slope ``s`` per neper, Bode's
+    gain-phase relation gives the phase ``π s / 2`` exactly; eq. 2.32's phase is ``arctan η``, so the slope
+    must be ``2 arctan(η)/π`` — independent of how the law is written.
+    """
+    ref = 120.0
+    # no dampers, a negligible baseplate: the support is the two layers in series
+    bare = dict(pad_damping_z=1e-9, subplate_damping_z=1e-9, baseplate_mass=1e-6, loss_reference_hz=ref)
+    f = np.geomspace(2.0, 2000.0, 40)
+    # one layer at a time: the other made rigid
+    for layer, eta in ((dict(subplate_stiffness_z=1e11), 0.13), (dict(pad_stiffness_z=1e11), 0.20)):
+        k = support_stiffness_per_metre(f, Trackform(**bare, **layer))
+        phase = np.angle(k)
+        slope = np.gradient(np.log(np.abs(k)), np.log(f))
+        np.testing.assert_allclose(phase, np.arctan(eta), atol=2e-3)
+        np.testing.assert_allclose(slope, 2 * phase / np.pi, atol=2e-3)
+    # at the reference the layers are eq. 2.32's; without a reference nothing changes; below 1 Hz no creep to 0
+    krp, ksp = 150e6 / 0.75 * (1 + 0.13j), 30e6 / 0.75 * (1 + 0.2j)
+    assert support_stiffness_per_metre(ref, Trackform(**bare)) == pytest.approx(krp * ksp / (krp + ksp), rel=1e-6)
+    np.testing.assert_array_equal(support_stiffness_per_metre(f, Trackform()),
+                                  support_stiffness_per_metre(f, Trackform(loss_reference_hz=None)))
+    low = support_stiffness_per_metre(np.array([0.0, 0.5, 1.0]), Trackform(**bare))
+    assert low[0] == pytest.approx(low[2], rel=1e-6) and low[1] == pytest.approx(low[2], rel=1e-6)
+    # from 10 Hz to 1 kHz the subplate-dominated support stiffens by 2·ln(100)·arctan(0.2)/π ≈ 0.58 neper ≈ 5 dB
+    k10, k1k = np.abs(support_stiffness_per_metre(np.array([10.0, 1000.0]), Trackform(**bare)))
+    eq_2_32 = Trackform(**{**bare, "loss_reference_hz": None})
+    nominal = np.abs(support_stiffness_per_metre(np.array([10.0, 1000.0]), eq_2_32))
+    gain_db = 20 * np.log10(k1k / k10) - 20 * np.log10(nominal[1] / nominal[0])
+    assert 3.5 < gain_db < 5.5
+
+
+def test_loss_reference_is_optional_in_files(tmp_path):
+    d = trackform_to_dict(Trackform())
+    assert "loss_reference_hz" not in d
+    p = tmp_path / "t.json"
+    p.write_text(json.dumps(d))
+    assert load_trackform(p).loss_reference_hz is None
+    p.write_text(json.dumps({**d, "loss_reference_hz": 100.0}))
+    assert load_trackform(p) == Trackform(loss_reference_hz=100.0)
+    assert trackform_to_dict(Trackform(loss_reference_hz=100.0))["loss_reference_hz"] == 100.0
+    p.write_text(json.dumps({**d, "loss_reference_hz": -5.0}))
+    with pytest.raises(TrackformError, match="loss_reference_hz"):
+        load_trackform(p)
