@@ -510,3 +510,26 @@ def test_ranking_puts_physical_fits_before_fits_on_a_bound():
     stretch = fit(TrackformEffect(section="B"), -160.0, True)
     ranked = sorted([stretch, soak, offset], key=_rank)
     assert ranked == [offset, stretch, soak]
+
+
+def test_dynamic_stiffening_reaches_every_trackform_of_the_estimator_and_survives_the_calibration_file(tmp_path):
+    """The state's reference frequency is set on every trackform section of the line the estimator uses, and
+    read back from a calibrated-model folder unchanged."""
+    from estimator.diagnosis import FieldState, load_calibration, save_calibration
+    from estimator.diagnosis.effects import DynamicStiffening
+    from estimator.diagnosis.state import line_with_changes
+    from estimator.io.line import LineDescription, TrackSection
+    from receptance.trackform import Trackform
+
+    st = DynamicStiffening().apply(FieldState(), {"reference_hz": 140.0})
+    assert st.loss_reference_hz == 140.0 and not st.is_nominal
+    line = LineDescription(trackforms=(TrackSection("a", 0.0, 100.0, Trackform()),
+                                       TrackSection("b", 100.0, 300.0, Trackform(pad_stiffness_z=100e6))))
+    out = line_with_changes(line, Trackform(), st)
+    assert [t.trackform.loss_reference_hz for t in out.trackforms] == [140.0, 140.0]
+    assert out.trackforms[1].trackform.pad_stiffness_z == 100e6
+    model = tmp_path / "m.npz"
+    model.write_bytes(b"model")
+    save_calibration(tmp_path / "cal", model, st, site=(0.0, 300.0), date="2026-01-05")
+    back, _ = load_calibration(tmp_path / "cal")
+    assert back == st

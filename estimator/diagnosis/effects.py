@@ -15,6 +15,9 @@ effect                 physical change (thesis)                                 
                        evidence located, its ends are fitted too                    start, end)
 ``discrete_supports``  the rail on discrete sleepers instead of a continuous        (the model switch)
                        support (§2.4), at the line's sleeper spacing
+``dynamic_stiffening`` every pad and subplate stiffening with frequency as a        reference frequency
+                       causal constant-loss layer must (eq. 2.32's η kept; the
+                       stated stiffness holds at the fitted frequency)
 ``contact_angle``      the contact angles γ_L, γ_R of one curve for the leading     γ on rail L, on R
                        or trailing wheelset (contact normals ``N``, eq. 2.12)
 ``sensor_offset``      an accelerometer's true mounting point (a row of ``A_B``,    the two offsets its
@@ -35,7 +38,7 @@ import numpy as np
 from estimator.diagnosis.state import FieldState, TrackformChange
 
 __all__ = ["Parameter", "FieldEffect", "TrackformEffect", "TrackformStretch",
-           "DiscreteSupports", "ContactAngle", "SensorOffset",
+           "DiscreteSupports", "DynamicStiffening", "ContactAngle", "SensorOffset",
            "ContactStiffness", "WheelRoughness", "EFFECT_NAMES", "catalogue"]
 
 
@@ -204,6 +207,30 @@ class DiscreteSupports(FieldEffect):
 
 
 @dataclass(frozen=True)
+class DynamicStiffening(FieldEffect):
+    """Eq. 2.32's constant loss factor made causal: the layers stiffen with frequency (Kramers–Kronig).
+
+    A pad or subplate with a loss factor ``η`` cannot have a stiffness independent of frequency; it rises by
+    ``2 arctan(η)/π`` per neper (:func:`receptance.track.layer_dispersion`). The trackform's stated stiffness
+    is then the one at the frequency the layer was characterised at — unknown in the field, fitted here. The
+    search spans the frequencies pads are tested at (a few Hz in EN 13146-9's low-frequency test to ~1 kHz in
+    the high-frequency methods); it acts on every trackform, where the rail receptance shapes the estimate
+    most (the unsprung mass on the track, 30–150 Hz).
+    """
+
+    name = "dynamic_stiffening"
+    parameters: tuple = (Parameter("reference_hz", 2.0, 5000.0, 100.0, log=True, unit="Hz",
+                                   plausible=(3.0, 3000.0)),)
+
+    @property
+    def where(self) -> str:
+        return "every trackform's pads and subplates"
+
+    def apply(self, state, values):
+        return state.with_loss_reference(values["reference_hz"])
+
+
+@dataclass(frozen=True)
 class ContactAngle(FieldEffect):
     curve: str = ""
     role: str = "any"
@@ -284,8 +311,8 @@ class WheelRoughness(FieldEffect):
         return state.with_wheel_roughness(self.wheelset, self.side, values["level_db"], values["slope_db_per_octave"])
 
 
-EFFECT_NAMES = ("trackform", "discrete_supports", "contact_angle", "sensor_offset", "contact_stiffness",
-                "wheel_roughness")
+EFFECT_NAMES = ("trackform", "discrete_supports", "dynamic_stiffening", "contact_angle", "sensor_offset",
+                "contact_stiffness", "wheel_roughness")
 
 
 def catalogue(evidence, line, channels, *, names=None, min_section_m: float = 40.0, stretches=()
@@ -326,6 +353,8 @@ def catalogue(evidence, line, channels, *, names=None, min_section_m: float = 40
                     evidence_after=any(s.to_m > b and s.from_m < b + res for s in cal)))
     if "discrete_supports" in names:
         out.append(DiscreteSupports())
+    if "dynamic_stiffening" in names:
+        out.append(DynamicStiffening())
     if "contact_angle" in names:
         for cid, role in sorted({(s.curve, s.role) for s in segs if s.curve is not None}):
             out.append(ContactAngle(curve=cid, role=role))

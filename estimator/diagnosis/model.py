@@ -64,7 +64,7 @@ class Evaluator:
         return float(self._hertz(state).semi_axis_x)
 
     def trackform_at(self, state: FieldState, x: float):
-        key = ("tf", x, state.trackform_changes, state.support_spacing_m)
+        key = ("tf", x, state.trackform_changes, state.support_spacing_m, state.loss_reference_hz)
         tf = self._memo.get(key)
         if tf is None:
             tf = self._memo[key] = self._trackform_at(state, x)
@@ -77,6 +77,8 @@ class Evaluator:
                 tf = ch.apply(tf)
         if state.support_spacing_m is not None:
             tf = replace(tf, support_spacing=state.support_spacing_m)
+        if state.loss_reference_hz is not None:
+            tf = replace(tf, loss_reference_hz=state.loss_reference_hz)
         return tf
 
     def theta_at(self, state: FieldState, seg) -> tuple[float, float]:

@@ -2,7 +2,8 @@
 
 A :class:`FieldState` holds every field effect accepted so far (and, while a
 candidate is fitted, the candidate's values) in physical terms — a trackform
-section, the rail's discrete supports, a curve's contact angles, an
+section, the rail's discrete supports, the resilient layers' causal
+stiffening (the frequency their stated stiffness holds at), a curve's contact angles, an
 accelerometer's true mounting point, the wheel load behind the Hertz
 stiffness, a wheel's roughness left in the estimate. Two realisations of it
 exist and must agree:
@@ -79,6 +80,9 @@ class FieldState:
         Rail support model of the track receptance (thesis §2.4).
     support_spacing_m : float or None
         Support spacing of every trackform when given (else each trackform's own).
+    loss_reference_hz : float or None
+        Every trackform's pads and subplates follow the causal constant-loss law with their stated stiffness
+        at this frequency (:attr:`receptance.trackform.Trackform.loss_reference_hz`); None: each trackform's own.
     curve_angles : tuple of (curve id, role, γ on rail L, γ on rail R)
         Contact angles [rad] (sign of :mod:`estimator.contact_angles`) of a curve for a wheelset role.
     sensor_offsets : tuple of (channel, dx, dy, dz)
@@ -92,6 +96,7 @@ class FieldState:
     trackform_changes: tuple[TrackformChange, ...] = ()
     supports: str = "continuous"
     support_spacing_m: float | None = None
+    loss_reference_hz: float | None = None
     curve_angles: tuple[tuple[str, str, float, float], ...] = ()
     sensor_offsets: tuple[tuple[str, float, float, float], ...] = ()
     wheel_load_N: float | None = None
@@ -103,6 +108,9 @@ class FieldState:
 
     def with_supports(self, supports: str, spacing_m: float | None) -> "FieldState":
         return replace(self, supports=supports, support_spacing_m=spacing_m)
+
+    def with_loss_reference(self, reference_hz: float) -> "FieldState":
+        return replace(self, loss_reference_hz=float(reference_hz))
 
     def with_curve_angles(self, curve_id: str, role: str, gamma_l: float, gamma_r: float) -> "FieldState":
         rest = tuple(a for a in self.curve_angles if (a[0], a[1]) != (curve_id, role))
@@ -132,7 +140,7 @@ class FieldState:
 
     def as_dict(self) -> dict:
         return {"trackform_changes": [c.as_dict() for c in self.trackform_changes], "supports": self.supports,
-                "support_spacing_m": self.support_spacing_m,
+                "support_spacing_m": self.support_spacing_m, "loss_reference_hz": self.loss_reference_hz,
                 "curve_angles": [{"curve": c, "role": r, "gamma_rail_L_deg": math.degrees(gl),
                                   "gamma_rail_R_deg": math.degrees(gr), "gamma_rad": [gl, gr]}
                                  for c, r, gl, gr in self.curve_angles],
@@ -150,6 +158,7 @@ class FieldState:
                                     for c in d.get("trackform_changes", [])),
             supports=str(d.get("supports", "continuous")),
             support_spacing_m=None if d.get("support_spacing_m") is None else float(d["support_spacing_m"]),
+            loss_reference_hz=None if d.get("loss_reference_hz") is None else float(d["loss_reference_hz"]),
             # the exact SI values when present (the degrees and millimetres are for the reader)
             curve_angles=tuple((str(a["curve"]), str(a["role"]), *map(float, a["gamma_rad"])) if "gamma_rad" in a
                                else (str(a["curve"]), str(a["role"]), math.radians(float(a["gamma_rail_L_deg"])),
@@ -164,7 +173,7 @@ class FieldState:
 
 # --------------------------------------------------------------------------- the estimator's realisation
 def line_with_changes(line: LineDescription | None, default: Trackform, state: FieldState) -> LineDescription:
-    """The line description with the state's trackform sections cut into its own (and the support spacing).
+    """The line description with the state's trackform sections cut into its own (support spacing, dispersion).
 
     Every trackform change scales the trackform the line has over its stretch (``default`` where the line has
     none); sections are cut at the change's ends so that each piece keeps its own base trackform.
@@ -183,6 +192,9 @@ def line_with_changes(line: LineDescription | None, default: Trackform, state: F
         sections = out
     if state.support_spacing_m is not None:
         sections = [(a, b, replace(tf, support_spacing=float(state.support_spacing_m)), n) for a, b, tf, n in sections]
+    if state.loss_reference_hz is not None:
+        sections = [(a, b, replace(tf, loss_reference_hz=float(state.loss_reference_hz)), n)
+                    for a, b, tf, n in sections]
     tracks = tuple(TrackSection(n, a, b, tf) for a, b, tf, n in sections)
     return replace(base, trackforms=tracks)
 
@@ -226,7 +238,8 @@ def field_model_for(fm, state: FieldState):
     if state.is_nominal:
         return fm
     line = line_with_changes(fm.line, fm.default_trackform(), state) if (
-        state.trackform_changes or state.support_spacing_m is not None or fm.trackform is not None) else fm.line
+        state.trackform_changes or state.support_spacing_m is not None or state.loss_reference_hz is not None
+        or fm.trackform is not None) else fm.line
     cfg = _estimator_config(fm.config, state)
     out = prepare(fm.model, sensors_with_offsets(fm.sensors, state), line=line, trackform=None, config=cfg)
     return replace(out, curving=fm.curving)
