@@ -55,7 +55,21 @@ def _say(*a):
     print(*a, flush=True)
 
 
-def _ingest(camp, work: Path, name: str, mon, reuse: bool = False):
+def _line_file(camp, work: Path, loss_reference_hz: float | None) -> Path:
+    """The campaign's line.json, or a copy whose trackforms state the frequency their pads' stiffness holds at."""
+    import json
+
+    if loss_reference_hz is None:
+        return camp / "line.json"
+    d = json.loads((camp / "line.json").read_text())
+    for t in d["trackform_sections"]:
+        t["loss_reference_hz"] = float(loss_reference_hz)
+    out = work / f"line_loss_reference_{loss_reference_hz:g}Hz.json"
+    out.write_text(json.dumps(d, indent=1))
+    return out
+
+
+def _ingest(camp, work: Path, name: str, mon, reuse: bool = False, line_file: Path | None = None):
     from test_estimator_synthetic import control_model
 
     from receptance.model_io import save_model
@@ -65,7 +79,7 @@ def _ingest(camp, work: Path, name: str, mon, reuse: bool = False):
     model = work / "hybrid_model.npz"
     if not model.exists():
         save_model(control_model(), model)
-    spec = IngestSpec(str(model), str(camp / "sensors.csv"), line=str(camp / "line.json"), monitoring=mon)
+    spec = IngestSpec(str(model), str(camp / "sensors.csv"), line=str(line_file or camp / "line.json"), monitoring=mon)
     store = MonitoringStore(work / name)
     t0 = time.perf_counter()
     if reuse and (work / name).is_dir():  # the runs as stored; only the days are averaged again
@@ -165,7 +179,7 @@ def averaging(work: Path, mon, reuse: bool = False) -> dict:
     return {"average": avg, "coverage": cov, "coverage_calibrated": cov_cal, "trolley": tab, "runs": res.runs}
 
 
-def growth(work: Path, mon, reuse: bool = False) -> dict:
+def growth(work: Path, mon, reuse: bool = False, loss_reference_hz: float | None = None) -> dict:
     from lab_data.line.cache import line_campaign_dir
     from monitor_truth import crossing_date, section_levels, truth_json, truth_windows
 
@@ -176,9 +190,13 @@ def growth(work: Path, mon, reuse: bool = False) -> dict:
     tj = truth_json(camp)
     g = tj["grinding"]
     _say(f"\n=== growth campaign {camp.name}: 5 days x 2 runs; truth: ground {g['date']} on {g['sections_m']} ===")
-    spec, store, res = _ingest(camp, work, "growth", mon, reuse)
+    line_file = _line_file(camp, work, loss_reference_hz)
+    name = "growth" if loss_reference_hz is None else f"growth_loss_reference_{loss_reference_hz:g}Hz"
+    _say("track model: " + ("eq. 2.32 (constant loss factors)" if loss_reference_hz is None else
+                            f"causal layers, stated stiffness at {loss_reference_hz:g} Hz"))
+    spec, store, res = _ingest(camp, work, name, mon, reuse, line_file)
     cfg = mon.replace(thresholds_um=FORECAST_THRESHOLDS_UM)
-    m = monitor(store, line_file=camp / "line.json", cfg=cfg)
+    m = monitor(store, line_file=line_file, cfg=cfg)
     truth = pd.concat([truth_windows(camp, d, mon.window_m) for d in res.dates], ignore_index=True)
     # --- each day's level on the corrugated patch and on the other rail beside it
     rows = []
@@ -206,7 +224,7 @@ def growth(work: Path, mon, reuse: bool = False) -> dict:
     _say(ev.to_string(index=False) if len(ev) else "none")
     # --- the forecast made on the last day before the grinding, against the truth's crossing
     as_of = g["last_day_before"]
-    mf = monitor(store, line_file=camp / "line.json", cfg=cfg, as_of=as_of)
+    mf = monitor(store, line_file=line_file, cfg=cfg, as_of=as_of)
     ext = {s: m.sections.extent(s) for s in mf.forecast["section"].unique()}
     fc = mf.forecast[(mf.forecast["rail"] == "R") & mf.forecast["band_mm"].isin(list(FORECAST_THRESHOLDS_UM))
                      & (mf.forecast["section"] == "curve_1")].copy()
@@ -257,6 +275,9 @@ def main(argv=None) -> int:
     ap.add_argument("--growth-uncertainty-runs", type=int, default=0,
                     help="runs per day of the growth campaign through the systematic variants (no perturbed "
                          "models): the forecast's interval then holds the systematic part")
+    ap.add_argument("--loss-reference-hz", type=float, default=None,
+                    help="growth campaign: the trackforms' pads follow the causal constant-loss law with their "
+                         "stated stiffness at this frequency (e.g. the field diagnosis's dynamic_stiffening fit)")
     ap.add_argument("--work", default=None, help="work folder (default: a temporary one, removed)")
     ap.add_argument("--reuse", action="store_true", help="use the stores already in --work (days averaged again)")
     a = ap.parse_args(argv)
@@ -269,7 +290,7 @@ def main(argv=None) -> int:
                                              sensor_noise_rms_m_s2=SENSOR_NOISE_M_S2), a.reuse)
         if a.part in ("growth", "all"):
             growth(work, MonitoringConfig(n_perturbed=0, uncertainty_runs=a.growth_uncertainty_runs,
-                                          sensor_noise_rms_m_s2=SENSOR_NOISE_M_S2), a.reuse)
+                                          sensor_noise_rms_m_s2=SENSOR_NOISE_M_S2), a.reuse, a.loss_reference_hz)
         _say(_outliers(work))
     finally:
         if not a.work:

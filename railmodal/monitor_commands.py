@@ -59,6 +59,14 @@ def _store_folder(option: str):
     return parse
 
 
+def _calibration_path(text: str) -> str:
+    p = Path(text)
+    if not (p / "field_calibration.json").is_file() and not (p.is_file() and p.suffix == ".json"):
+        raise argparse.ArgumentTypeError(f"--calibration: {text} is neither a calibrated-model folder (with "
+                                         f"field_calibration.json) nor such a JSON file")
+    return str(p)
+
+
 def _iso_date(option: str):
     def parse(text: str) -> str:
         import datetime as _dt
@@ -80,7 +88,7 @@ def _spec(args, model) -> object:
     mon = MonitoringConfig(model=args.model_kind, window_m=args.window, n_perturbed=args.perturbed,
                            uncertainty_runs=args.uncertainty_runs)
     return IngestSpec(str(model), str(args.sensors), line=str(args.line) if args.line else None, estimator=est,
-                      monitoring=mon, direction=args.direction)
+                      monitoring=mon, direction=args.direction, calibration=args.calibration)
 
 
 def _executor(args):
@@ -237,6 +245,9 @@ def _common_processing(p) -> None:
                    help="sensor table CSV (name, quantity, unit, wheelset, side, direction, x, y, z, sensitivity)")
     p.add_argument("--model", required=True, type=existing_file("--model", "hybrid wheelset model (.npz)"),
                    help="hybrid_model.npz ('railmodal model build' or 'lab diagnose'); its hash is the model version")
+    p.add_argument("--calibration", default=None, type=_calibration_path,
+                   help="calibrated_model/ folder of 'railmodal field diagnose' for this model: its field effects "
+                        "are applied and the store keeps the results under the calibrated version")
     p.add_argument("--store", required=True, type=_store_folder("--store"), help="monitoring store folder")
     p.add_argument("--line", default=None, type=existing_file("--line", "line description (line.json)"),
                    help="line.json: sections, curves, trackforms, balises and welds (alignment)")

@@ -131,6 +131,36 @@ def test_a_new_model_is_reprocessed_beside_the_old_one(field, ingested, tmp_path
     assert old.model_hash == res.model_hash
 
 
+def test_a_field_calibration_is_ingested_as_its_own_version(field, ingested, tmp_path):
+    """The diagnosis's calibrated model feeds the store: applied, versioned apart, refused for another model."""
+    from receptance.model_io import save_model
+
+    from estimator.diagnosis import CalibrationFileError, FieldState, save_calibration
+
+    st, res = ingested
+    state = FieldState().with_loss_reference(60.0)
+    save_calibration(tmp_path / "cal", field["spec"].model, state, site=(0.0, 100.0), date="2026-01-05")
+    spec = IngestSpec(field["spec"].model, field["spec"].sensors, estimator=EstimatorConfig(wheelbase_m=2.2),
+                      monitoring=MonitoringConfig(n_perturbed=0, uncertainty_runs=0), calibration=str(tmp_path / "cal"))
+    r = reprocess(st, spec, from_model=res.model_hash)
+    assert r.model_hash.startswith(res.model_hash + "+cal") and len(r.runs) == len(res.runs)
+    assert {res.model_hash, r.model_hash} <= set(st.model_versions()["model_hash"])
+    # the synthetic runs were made through eq. 2.32's track: stiffening the layers changes the estimate where
+    # the track shapes it (the unsprung mass on the track, 100-300 mm at these speeds), not by a constant
+    a = monitor(st, model_hash=res.model_hash).day_windows
+    b = monitor(st, model_hash=r.model_hash).day_windows
+    j = a.merge(b, on=["date", "rail", "band_mm", "window_m"], suffixes=("_n", "_c"))
+    d = (j["level_db_c"] - j["level_db_n"]).groupby(j["band_mm"]).median()
+    assert abs(d["100-300"]) > 0.1 and abs(d["100-300"] - d["30-100"]) > 0.05
+    # a calibration made for another model is refused, naming both models
+    other = field["model"].with_modal_parameters(field["model"].freqs_hz * 1.02, step="test: another model")
+    save_model(other, tmp_path / "other.npz")
+    save_calibration(tmp_path / "cal_other", tmp_path / "other.npz", state, site=(0.0, 100.0), date="2026-01-05")
+    with pytest.raises(CalibrationFileError, match=r"calibrates the model with hash .* not hybrid_model\.npz"):
+        ingest(field["runs"][:1], IngestSpec(field["spec"].model, field["spec"].sensors,
+                                             calibration=str(tmp_path / "cal_other")), st)
+
+
 def test_cli_ingest_monitor_and_bad_arguments(field, tmp_path, capsys):
     from railmodal.cli import main
 

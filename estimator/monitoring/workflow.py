@@ -112,6 +112,10 @@ class IngestSpec:
         Override every run's direction of travel.
     line_id : str, optional
         The line's id in the store (default: ``line.json``'s id, else the runs' header ``line``).
+    calibration : str, optional
+        A field calibration of this model (``railmodal field diagnose``'s ``calibrated_model/`` folder or its
+        ``field_calibration.json``): its accepted effects are applied, and the store's model version becomes
+        ``<model hash>+cal<state hash>`` so that calibrated and nominal results stay apart.
     """
 
     model: str
@@ -121,6 +125,7 @@ class IngestSpec:
     monitoring: MonitoringConfig = field(default_factory=MonitoringConfig)
     direction: str | None = None
     line_id: str | None = None
+    calibration: str | None = None
 
     def __post_init__(self) -> None:
         for name in ("model", "sensors") + (("line",) if self.line else ()):
@@ -128,13 +133,18 @@ class IngestSpec:
             if not p.is_file():
                 raise FileNotFoundError(f"{name} file {p} does not exist")
             object.__setattr__(self, name, str(p.resolve()))
+        if self.calibration is not None:
+            p = Path(self.calibration)
+            if not p.exists():
+                raise FileNotFoundError(f"calibration {p} does not exist")
+            object.__setattr__(self, "calibration", str(p.resolve()))
         # only the monitored model is estimated (the single-run report compares the three)
         object.__setattr__(self, "estimator", self.estimator.replace(models=(self.monitoring.model,)))
 
     def key(self) -> str:
         return config_hash({"model": self.model, "sensors": self.sensors, "line": self.line,
                             "estimator": self.estimator.as_dict(), "monitoring": self.monitoring.as_dict(),
-                            "direction": self.direction, "line_id": self.line_id})
+                            "direction": self.direction, "line_id": self.line_id, "calibration": self.calibration})
 
 
 @dataclass(frozen=True, eq=False)
@@ -158,6 +168,27 @@ class _Context:
 _CONTEXTS: dict[str, _Context] = {}
 
 
+def calibrated(fm, model_file, calibration) -> tuple[object, str]:
+    """``(field model, version)`` with a field calibration of ``model_file`` applied (:class:`IngestSpec`).
+
+    Raises
+    ------
+    CalibrationFileError
+        The calibration is unreadable, or was made for another model file (the hashes are named).
+    """
+    from estimator.diagnosis import calibrated_field_model, load_calibration
+    from estimator.diagnosis.calibration import calibration_version
+    from estimator.diagnosis.errors import CalibrationFileError
+
+    state, doc = load_calibration(calibration)
+    mh = file_hash(model_file)
+    if doc.get("model_hash") != mh:
+        raise CalibrationFileError(f"{calibration}: calibrates the model with hash {doc.get('model_hash')}, not "
+                                   f"{Path(model_file).name} (hash {mh}); run 'railmodal field diagnose' with this "
+                                   f"model")
+    return calibrated_field_model(fm, calibration), calibration_version(mh, state)
+
+
 def run_context(spec: IngestSpec) -> _Context:
     """The field model, line and identity of a spec, built once per process (a worker's runs share them)."""
     key = spec.key()
@@ -165,9 +196,12 @@ def run_context(spec: IngestSpec) -> _Context:
         from estimator.workflow import prepare
 
         fm = prepare(spec.model, spec.sensors, line=spec.line, config=spec.estimator)
+        version = file_hash(spec.model)
+        if spec.calibration is not None:
+            fm, version = calibrated(fm, spec.model, spec.calibration)
         line = fm.line
         info = RunInfo(line=spec.line_id or (line.id if line is not None and line.id else ""),
-                       model_hash=file_hash(spec.model), model_file=Path(spec.model).name,
+                       model_hash=version, model_file=Path(spec.model).name,
                        toolkit_version=toolkit_version(),
                        config_hash=config_hash(spec.estimator.as_dict(), spec.monitoring.as_dict()))
         if len(_CONTEXTS) > 8:
