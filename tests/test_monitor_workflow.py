@@ -188,6 +188,9 @@ def test_cli_ingest_monitor_and_bad_arguments(field, tmp_path, capsys):
     assert not (tmp_path / "z").exists()
     assert main(args[:3] + [str(tmp_path / "nope.mf4")] + args[5:]) == 1
     assert "does not exist" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as e:  # a folder that holds no field calibration
+        main(args + ["--calibration", str(tmp_path)])
+    assert e.value.code == 2 and "--calibration" in capsys.readouterr().err
 
 
 def test_cli_compare_reference_with_a_trolley_on_its_own_chainage(field, ingested, tmp_path, capsys):
