@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 
 import numpy as np
 import pandas as pd
@@ -11,7 +10,7 @@ import pytest
 from railmodal.cli import main
 from receptance.model_io import load_model
 from receptance.track import track_receptance
-from receptance.trackform import Trackform
+from receptance.trackform import Trackform, trackform_to_dict
 from test_hybrid_model import truth_pairing
 
 
@@ -27,7 +26,7 @@ def test_model_track_writes_the_receptance_table_and_plot(tmp_path, capsys):
                                rtol=1e-8)
     assert (tmp_path / "track_receptance.png").stat().st_size > 10_000
     # a user's trackform: a pad twice as stiff raises the vertical resonance
-    params = dict(dataclasses.asdict(Trackform()), pad_stiffness_z=2 * Trackform().pad_stiffness_z)
+    params = dict(trackform_to_dict(Trackform()), pad_stiffness_z=2 * Trackform().pad_stiffness_z)
     (tmp_path / "stiff.toml").write_text("".join(f"{k} = {float(v)!r}\n" for k, v in params.items()))
     out = tmp_path / "stiff"
     code = main(["-q", "model", "track", "--trackform", str(tmp_path / "stiff.toml"), "--out", str(out)])
@@ -40,7 +39,7 @@ def test_model_track_writes_the_receptance_table_and_plot(tmp_path, capsys):
 
 
 def test_model_track_refuses_a_bad_trackform(tmp_path, capsys):
-    params = dict(dataclasses.asdict(Trackform()), pad_stiffness_z=-1.0)
+    params = dict(trackform_to_dict(Trackform()), pad_stiffness_z=-1.0)
     (tmp_path / "bad.toml").write_text("".join(f"{k} = {float(v)!r}\n" for k, v in params.items()))
     assert main(["-q", "model", "track", "--trackform", str(tmp_path / "bad.toml"), "--out", str(tmp_path)]) == 1
     assert "pad_stiffness_z" in capsys.readouterr().err
