@@ -75,11 +75,7 @@ class Evaluator:
         for ch in state.trackform_changes:
             if ch.from_m <= x <= ch.to_m:
                 tf = ch.apply(tf)
-        if state.support_spacing_m is not None:
-            tf = replace(tf, support_spacing=state.support_spacing_m)
-        if state.loss_reference_hz is not None:
-            tf = replace(tf, loss_reference_hz=state.loss_reference_hz)
-        return tf
+        return state.line_wide(tf)
 
     def theta_at(self, state: FieldState, seg) -> tuple[float, float]:
         if seg.curve is None:

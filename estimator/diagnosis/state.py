@@ -128,6 +128,15 @@ class FieldState:
         return replace(self, wheel_roughness=rest + ((int(wheelset), side, float(level_db), float(slope_db)),))
 
     # ------------------------------------------------------------------ views
+    def line_wide(self, tf: Trackform) -> Trackform:
+        """``tf`` with the state's line-wide trackform settings (support spacing, layers' reference frequency)."""
+        changes = {}
+        if self.support_spacing_m is not None:
+            changes["support_spacing"] = float(self.support_spacing_m)
+        if self.loss_reference_hz is not None:
+            changes["loss_reference_hz"] = float(self.loss_reference_hz)
+        return replace(tf, **changes) if changes else tf
+
     def offset_of(self, channel: str) -> tuple[float, float, float]:
         for c, dx, dy, dz in self.sensor_offsets:
             if c == channel:
@@ -190,12 +199,7 @@ def line_with_changes(line: LineDescription | None, default: Trackform, state: F
                 inside = lo >= ch.from_m and hi <= ch.to_m
                 out.append((lo, hi, ch.apply(tf) if inside else tf, f"{name} (field calibration)" if inside else name))
         sections = out
-    if state.support_spacing_m is not None:
-        sections = [(a, b, replace(tf, support_spacing=float(state.support_spacing_m)), n) for a, b, tf, n in sections]
-    if state.loss_reference_hz is not None:
-        sections = [(a, b, replace(tf, loss_reference_hz=float(state.loss_reference_hz)), n)
-                    for a, b, tf, n in sections]
-    tracks = tuple(TrackSection(n, a, b, tf) for a, b, tf, n in sections)
+    tracks = tuple(TrackSection(n, a, b, state.line_wide(tf)) for a, b, tf, n in sections)
     return replace(base, trackforms=tracks)
 
 

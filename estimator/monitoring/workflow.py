@@ -176,9 +176,10 @@ def calibrated(fm, model_file, calibration) -> tuple[object, str]:
     CalibrationFileError
         The calibration is unreadable, or was made for another model file (the hashes are named).
     """
-    from estimator.diagnosis import calibrated_field_model, load_calibration
+    from estimator.diagnosis import load_calibration
     from estimator.diagnosis.calibration import calibration_version
     from estimator.diagnosis.errors import CalibrationFileError
+    from estimator.diagnosis.state import field_model_for
 
     state, doc = load_calibration(calibration)
     mh = file_hash(model_file)
@@ -186,7 +187,7 @@ def calibrated(fm, model_file, calibration) -> tuple[object, str]:
         raise CalibrationFileError(f"{calibration}: calibrates the model with hash {doc.get('model_hash')}, not "
                                    f"{Path(model_file).name} (hash {mh}); run 'railmodal field diagnose' with this "
                                    f"model")
-    return calibrated_field_model(fm, calibration), calibration_version(mh, state)
+    return field_model_for(fm, state), calibration_version(mh, state)
 
 
 def run_context(spec: IngestSpec) -> _Context:
