@@ -102,7 +102,9 @@ class MonitoringStore:
             if int(d.get("version", 0)) > STORE_VERSION:
                 raise StoreError(f"{self.root}: store version {d.get('version')} is newer than this toolkit's "
                                  f"({STORE_VERSION}); update railmodal")
-        elif self.root.exists() and any(p.name != ".lock" for p in self.root.iterdir()):
+        # another process creating the store holds its lock and may be writing store.json's temporary file
+        elif self.root.exists() and any(p.name != ".lock" and not p.name.startswith(".store.json.tmp-")
+                                        for p in self.root.iterdir()):
             raise StoreError(f"{self.root} is a non-empty folder without store.json: not a monitoring store "
                              "(give an empty or new folder)")
 
