@@ -84,7 +84,9 @@ class FieldModel:
 
     Transfer functions are computed on first use for each (model, wheelset,
     trackform, contact angles) and memoised in ``cache`` (a dictionary the
-    object owns), so that many runs share them.
+    object owns), so that many runs share them. ``provenance``: where the
+    model's settings came from beyond the files it was prepared from (a field
+    calibration), recorded first in every estimate's processing history.
     """
 
     model: object
@@ -95,6 +97,7 @@ class FieldModel:
     contact_stiffness: float
     semi_axis_m: float
     curving: CurvingModel = CurvingModel()
+    provenance: tuple[str, ...] = ()
     cache: dict = field(default_factory=dict, repr=False)
 
     def trackforms(self) -> list[tuple[float, float, Trackform]]:
@@ -380,7 +383,7 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
     v_kept = np.abs(track.speed_at(t_run)[kept])
     v_slow = max(cfg.speed_gate_m_s, float(v_kept.min())) if v_kept.size else cfg.speed_gate_m_s
     dx_target, lam_min = spatial_step(v_slow, f_hi)
-    steps = [f"orientation: {orient.direction}/{orient.orientation}, leading wheelset {orient.leading}, vehicle "
+    steps = [*fm.provenance, f"orientation: {orient.direction}/{orient.orientation}, leading wheelset {orient.leading}, vehicle "
              f"L on rail {orient.rail_of_side['L']}",
              f"chainage from the odometer: {len(track.resets)} balise reset(s) corrected, "
              f"{len(track.untrusted)} stretch(es) not trusted"]

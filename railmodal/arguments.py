@@ -32,7 +32,7 @@ import os
 from pathlib import Path
 
 __all__ = ["add_geometry_argument", "bounded_int", "bounded_float", "existing_file", "existing_folder", "output_folder", "band_action",
-           "check_choice_list"]
+           "calibration_path", "check_choice_list"]
 
 
 def _fmt(v: float) -> str:
@@ -142,6 +142,16 @@ def existing_folder(option: str, role: str, *, file_ok: bool = False):
 
     parse.__name__ = "existing folder"
     return parse
+
+
+def calibration_path(text: str) -> str:
+    """``type=`` for ``--calibration``: a calibrated-model folder of ``railmodal field diagnose`` (with
+    ``field_calibration.json``) or that JSON file."""
+    p = Path(text)
+    if not (p / "field_calibration.json").is_file() and not (p.is_file() and p.suffix == ".json"):
+        raise argparse.ArgumentTypeError(f"{text} is neither a calibrated-model folder (with field_calibration.json) "
+                                         f"nor such a JSON file")
+    return str(p)
 
 
 def output_folder(option: str = "--out"):

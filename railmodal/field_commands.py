@@ -1,7 +1,8 @@
 """``railmodal field estimate``: one field run → rail roughness per rail, EN 13231-3 indexes, EN 15610 spectra.
 
 The command validates every argument and input file before any work,
-calls the library workflow (:func:`estimator.prepare`,
+calls the library workflow (:func:`estimator.prepare`, with a field
+calibration :func:`estimator.diagnosis.calibrated_field_model`,
 :func:`estimator.estimate_run`, :func:`estimator.export.write_estimate`) and
 writes its results only when everything succeeded (temporary folder, then
 rename). It prints a short summary: masked share, wheelbase, the corrugated
@@ -15,7 +16,7 @@ import sys
 import time
 from pathlib import Path
 
-from railmodal.arguments import bounded_float, existing_file, output_folder
+from railmodal.arguments import bounded_float, calibration_path, existing_file, output_folder
 
 __all__ = ["add_field_commands", "summarise_estimate"]
 
@@ -34,6 +35,7 @@ def summarise_estimate(est, files: dict | None = None) -> list[str]:
              f"{100 * est.masked_share.get('run', 0.0):.1f} %, {len(est.qc)} quality-control finding(s)",
              f"wheelbase {est.wheelbase_m:.3f} m ({est.wheelbase_source}); inversion band {est.band_hz[0]:g}-"
              f"{est.band_hz[1]:g} Hz; shortest resolved wavelength {1e3 * est.lambda_min_m:.1f} mm"]
+    lines += [p for p in getattr(est, "processing", ()) if p.startswith("field calibration ")]
     for s in est.skipped:
         lines.append(f"not estimated: {s}")
     c = est.corrugation
@@ -87,6 +89,11 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     step(f"preparing the transfer functions ({', '.join(models)}) from {args.model}")
     fm = prepare(args.model, args.sensors, line=args.line, trackform=trackform, config=cfg)
+    if args.calibration:
+        from estimator.diagnosis import calibrated_field_model
+
+        fm, _ = calibrated_field_model(fm, args.model, args.calibration)
+        step(fm.provenance[-1])
     reference = None
     if args.reference:
         reference = reference_indexes(read_trolley(args.reference), cfg)
@@ -172,5 +179,9 @@ def add_field_commands(sub) -> None:
     est.add_argument("--single-wheelset", action="store_true",
                      help="the thesis's single-wheelset transfer functions: leave out the rail's coupling of the "
                           "bogie's two wheelsets (default: included)")
+    est.add_argument("--calibration", default=None, type=calibration_path, metavar="DIR",
+                     help="calibrated_model/ folder of 'railmodal field diagnose' made for this --model: its field "
+                          "effects (trackform, contact angles, mounting points, ...) are applied and named in the "
+                          "report's processing history")
     est.add_argument("--out", required=True, type=output_folder("--out"))
     est.set_defaults(func=_cmd_estimate)

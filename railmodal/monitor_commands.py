@@ -25,7 +25,7 @@ import sys
 import time
 from pathlib import Path
 
-from railmodal.arguments import band_action, bounded_float, bounded_int, existing_file, output_folder
+from railmodal.arguments import band_action, bounded_float, bounded_int, calibration_path, existing_file, output_folder
 
 __all__ = ["add_monitor_commands"]
 
@@ -57,14 +57,6 @@ def _store_folder(option: str):
 
     parse.__name__ = "store folder"
     return parse
-
-
-def _calibration_path(text: str) -> str:
-    p = Path(text)
-    if not (p / "field_calibration.json").is_file() and not (p.is_file() and p.suffix == ".json"):
-        raise argparse.ArgumentTypeError(f"{text} is neither a calibrated-model folder (with field_calibration.json) "
-                                         f"nor such a JSON file")
-    return str(p)
 
 
 def _iso_date(option: str):
@@ -245,7 +237,7 @@ def _common_processing(p) -> None:
                    help="sensor table CSV (name, quantity, unit, wheelset, side, direction, x, y, z, sensitivity)")
     p.add_argument("--model", required=True, type=existing_file("--model", "hybrid wheelset model (.npz)"),
                    help="hybrid_model.npz ('railmodal model build' or 'lab diagnose'); its hash is the model version")
-    p.add_argument("--calibration", default=None, type=_calibration_path, metavar="DIR",
+    p.add_argument("--calibration", default=None, type=calibration_path, metavar="DIR",
                    help="calibrated_model/ folder of 'railmodal field diagnose' for this model: its field effects "
                         "are applied and the store keeps the results under the calibrated version")
     p.add_argument("--store", required=True, type=_store_folder("--store"), help="monitoring store folder")

@@ -105,3 +105,40 @@ def test_the_summary_says_whether_the_trailing_wheelset_agrees():
     assert len(lines) == 2
     assert "rail L" in lines[0] and "NOT above the threshold on the trailing wheelset" in lines[0]
     assert "rail R" in lines[1] and "trailing wheelset 21.9 um" in lines[1]
+
+
+def test_a_field_calibration_is_applied_named_and_refused_for_another_model(inputs, capsys, tmp_path):
+    """``--calibration``: the diagnosis's calibrated model changes the estimate where its effect acts (the Hertz
+    contact of a heavier wheel load, stiff: the high frequencies, 10-30 mm at 10 m/s), is named in the summary
+    and the report's processing history, and is refused, naming both hashes, for a model it was not made for."""
+    from estimator.diagnosis import FieldState, save_calibration
+
+    tmp, model, sensors, sr = inputs
+    base = ["-q", "field", "estimate", "--run", str(sr.path), "--sensors", str(sensors), "--model", str(model),
+            "--models", "vertical"]
+    assert main(base + ["--out", str(tmp_path / "nominal")]) == 0
+    save_calibration(tmp_path / "cal", model, FieldState().with_wheel_load(110e3), site=(40.0, 200.0),
+                     date="2026-01-05")
+    capsys.readouterr()
+    assert main(base + ["--calibration", str(tmp_path / "cal"), "--out", str(tmp_path / "cal_out")]) == 0
+    out = capsys.readouterr().out
+    assert "field calibration " in out and "+cal" in out and "wheel load 110 kN" in out
+    assert "wheel load 110 kN" in (tmp_path / "cal_out" / "report.html").read_text()
+    key = ["wheelset", "stretch", "rail", "wavelength_m"]
+    a = pd.read_csv(tmp_path / "nominal" / "spectra.csv").set_index(key)["level_db"]
+    b = pd.read_csv(tmp_path / "cal_out" / "spectra.csv").set_index(key)["level_db"]
+    d = (b - a.reindex(b.index)).dropna()
+    w = d.index.get_level_values("wavelength_m")
+    # a heavier wheel has a longer contact patch, which averages the short wavelengths more (the contact filter),
+    # so the same accelerations mean more rail roughness there; from 100 mm on, patch and Hertz spring hardly matter
+    m = d.groupby(level="wavelength_m").mean()
+    assert m[0.0315] > 0.5 and (m[m.index <= 0.08].diff().dropna() < 0).all()
+    assert d[(w >= 0.1) & (w <= 0.5)].abs().max() < 0.25
+    # made for another model: refused before any work, both hashes named
+    other = tmp_path / "other.npz"
+    other.write_bytes(model.read_bytes() + b"\0")
+    code = main(base[:-2] + ["--model", str(other), "--models", "vertical", "--calibration", str(tmp_path / "cal"),
+                             "--out", str(tmp_path / "refused")])
+    err = capsys.readouterr().err
+    assert code == 1 and "calibrates the model with hash" in err and "other.npz" in err
+    assert not (tmp_path / "refused").exists()

@@ -8,8 +8,9 @@ it applies to, and ``version`` = ``<model hash>+cal<hash of the state>``:
 the key under which the monitoring store can keep the calibrated results
 apart from the nominal ones. :func:`load_calibration` refuses a newer
 format or a model file that is not the one calibrated;
-:func:`calibrated_field_model` turns a prepared
-:class:`~estimator.workflow.FieldModel` into the calibrated one.
+:func:`calibrated_field_model` turns a
+:class:`~estimator.workflow.FieldModel` prepared from that model file into the
+calibrated one (the single-run estimate's and the store's path alike).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from __future__ import annotations
 import hashlib
 import json
 import shutil
+from dataclasses import replace
 from pathlib import Path
 
 from estimator.diagnosis.errors import CalibrationFileError
@@ -89,7 +91,39 @@ def load_calibration(folder) -> tuple[FieldState, dict]:
     return state, doc
 
 
-def calibrated_field_model(fm, folder):
-    """The :class:`~estimator.workflow.FieldModel` ``fm`` with the calibration of ``folder`` applied."""
-    state, _ = load_calibration(folder)
-    return field_model_for(fm, state)
+def calibrated_field_model(fm, model_file, folder):
+    """The :class:`~estimator.workflow.FieldModel` ``fm`` with the calibration of ``folder`` applied.
+
+    Parameters
+    ----------
+    fm : FieldModel
+        Prepared from ``model_file`` (:func:`estimator.workflow.prepare`).
+    model_file : str or Path
+        The wheelset model file ``fm`` was prepared from: the calibration must have been made for it.
+    folder : str or Path
+        A calibrated-model folder (``railmodal field diagnose``) or its ``field_calibration.json``.
+
+    Returns
+    -------
+    field_model : FieldModel
+        With the calibration's field state applied and named first in its ``provenance``.
+    version : str
+        ``<model hash>+cal<state hash>`` (:func:`calibration_version`).
+
+    Raises
+    ------
+    CalibrationFileError
+        The calibration is unreadable, or was made for another model file (both hashes are named).
+    """
+    state, doc = load_calibration(folder)
+    mh = _sha(Path(model_file))
+    if doc.get("model_hash") != mh:
+        raise CalibrationFileError(f"{folder}: calibrates the model with hash {doc.get('model_hash')}, not "
+                                   f"{Path(model_file).name} (hash {mh}); run 'railmodal field diagnose' with this "
+                                   f"model")
+    version = calibration_version(mh, state)
+    site = doc.get("site_m") or ["?", "?"]
+    note = (f"field calibration {version} ({folder}; site {site[0]}-{site[1]} m, "
+            f"{doc.get('calibration_date', 'date not stated')}): {state.summary()}")
+    out = field_model_for(fm, state)
+    return replace(out, provenance=(*fm.provenance, note)), version

@@ -147,6 +147,27 @@ class FieldState:
     def is_nominal(self) -> bool:
         return self == FieldState()
 
+    def summary(self) -> str:
+        """One line naming every change of this state from the nominal one (``nominal`` when none)."""
+        parts = []
+        for c in self.trackform_changes:
+            parts.append(f"trackform {c.from_m:g}-{c.to_m:g} m " + ", ".join(f"{k} x{v:.3g}" for k, v in c.factors))
+        if self.supports != "continuous" or self.support_spacing_m is not None:
+            parts.append(f"supports {self.supports}" + ("" if self.support_spacing_m is None
+                                                        else f" at {self.support_spacing_m:.3g} m"))
+        if self.loss_reference_hz is not None:
+            parts.append(f"causal pads and subplates, stated stiffness at {self.loss_reference_hz:.4g} Hz")
+        for cid, role, gl, gr in self.curve_angles:
+            parts.append(f"curve {cid} ({role}) contact angles rail L {math.degrees(gl):.2f} deg, rail R "
+                         f"{math.degrees(gr):.2f} deg")
+        for ch, dx, dy, dz in self.sensor_offsets:
+            parts.append(f"{ch} moved ({1e3 * dx:+.1f}, {1e3 * dy:+.1f}, {1e3 * dz:+.1f}) mm")
+        if self.wheel_load_N is not None:
+            parts.append(f"wheel load {1e-3 * self.wheel_load_N:.3g} kN")
+        for w, side, lv, sl in self.wheel_roughness:
+            parts.append(f"wheel {w}{side} roughness {lv:.1f} dB at 100 mm, {sl:+.1f} dB/octave (reported only)")
+        return "; ".join(parts) if parts else "nominal"
+
     def as_dict(self) -> dict:
         return {"trackform_changes": [c.as_dict() for c in self.trackform_changes], "supports": self.supports,
                 "support_spacing_m": self.support_spacing_m, "loss_reference_hz": self.loss_reference_hz,

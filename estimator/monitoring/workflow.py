@@ -168,28 +168,6 @@ class _Context:
 _CONTEXTS: dict[str, _Context] = {}
 
 
-def calibrated(fm, model_file, calibration) -> tuple[object, str]:
-    """``(field model, version)`` with a field calibration of ``model_file`` applied (:class:`IngestSpec`).
-
-    Raises
-    ------
-    CalibrationFileError
-        The calibration is unreadable, or was made for another model file (the hashes are named).
-    """
-    from estimator.diagnosis import load_calibration
-    from estimator.diagnosis.calibration import calibration_version
-    from estimator.diagnosis.errors import CalibrationFileError
-    from estimator.diagnosis.state import field_model_for
-
-    state, doc = load_calibration(calibration)
-    mh = file_hash(model_file)
-    if doc.get("model_hash") != mh:
-        raise CalibrationFileError(f"{calibration}: calibrates the model with hash {doc.get('model_hash')}, not "
-                                   f"{Path(model_file).name} (hash {mh}); run 'railmodal field diagnose' with this "
-                                   f"model")
-    return field_model_for(fm, state), calibration_version(mh, state)
-
-
 def run_context(spec: IngestSpec) -> _Context:
     """The field model, line and identity of a spec, built once per process (a worker's runs share them)."""
     key = spec.key()
@@ -199,7 +177,9 @@ def run_context(spec: IngestSpec) -> _Context:
         fm = prepare(spec.model, spec.sensors, line=spec.line, config=spec.estimator)
         version = file_hash(spec.model)
         if spec.calibration is not None:
-            fm, version = calibrated(fm, spec.model, spec.calibration)
+            from estimator.diagnosis import calibrated_field_model
+
+            fm, version = calibrated_field_model(fm, spec.model, spec.calibration)
         line = fm.line
         info = RunInfo(line=spec.line_id or (line.id if line is not None and line.id else ""),
                        model_hash=version, model_file=Path(spec.model).name,
