@@ -14,7 +14,11 @@ Datasets used (layouts: UC-SDRL universal file descriptions, as printed by
   ``L / sqrt(Mk)``.  A non-SI code without usable factors raises
   :class:`FEReadError`.
 * **2411** nodes (double precision) and the legacy **15** (single precision):
-  labels and coordinates.  Coordinate systems are assumed global.
+  labels and coordinates, in the global Cartesian system: labels 0 and 1,
+  or a system that **2420** defines as Cartesian with the identity rotation
+  at the origin.  Nodes in any other system of 2420 (rotated, shifted,
+  cylindrical, spherical) are refused, naming the nodes and the system;
+  a label that no 2420 defines is logged and taken as global.
 * **2412** elements: label, FE descriptor id, physical property and node
   labels.  pyuff reads only the first line of node labels (8 labels), which
   covers beams, triangles, quadrilaterals and masses; an element with more
@@ -236,9 +240,10 @@ def _read_parts_with(path: str, readable: str, data: bytes, frames, *, want_mode
                           f"{len(start_lines)}: the file is corrupt")
 
     parts = _Parts()
-    node_chunks: list[tuple[np.ndarray, np.ndarray, int]] = []
+    node_chunks: list[tuple[np.ndarray, np.ndarray, int, np.ndarray]] = []
     element_sets: list[tuple[dict, int]] = []
-    wanted = {15, 164, 2411, 2412} | ({55, 2414} if want_modes else set())
+    systems: dict[int, tuple[int, str, np.ndarray]] = {}
+    wanted = {15, 164, 2411, 2412, 2420} | ({55, 2414} if want_modes else set())
     ignored: dict[int, int] = {}
     for k, (kind, line) in enumerate(zip(types.tolist(), start_lines)):
         if kind <= 0:
@@ -283,6 +288,8 @@ def _read_parts_with(path: str, readable: str, data: bytes, frames, *, want_mode
             node_chunks.append(_nodes(path, dset, kind, line))
         elif kind == 2412:
             element_sets.append((dset, line))
+        elif kind == 2420:
+            systems.update(_coordinate_systems(path, dset, line))
         else:
             parts.modes.append(_mode(path, dset, line, len(parts.modes) + 1))
     odd: dict = {}
@@ -305,6 +312,8 @@ def _read_parts_with(path: str, readable: str, data: bytes, frames, *, want_mode
         if np.any(counts > 1):
             raise FEReadError(path, f"node label(s) defined more than once: {uniq[counts > 1][:10].tolist()}",
                               dataset="2411", line=node_chunks[0][2])
+        _check_node_systems(path, ids, np.concatenate([c[3] for c in node_chunks]), systems, node_chunks[0][2],
+                            float(np.abs(xyz).max()))
         parts.node_ids, parts.xyz, parts.node_line = ids, xyz / parts.length_factor, node_chunks[0][2]
         if parts.length_factor != 1.0:
             parts.history.append(f"coordinates divided by the file's length factor {parts.length_factor:g} (to m)")
@@ -336,7 +345,7 @@ def _ranges(numbers) -> str:
     return ", ".join(out)
 
 
-def _nodes(path, dset, kind, line) -> tuple[np.ndarray, np.ndarray, int]:
+def _nodes(path, dset, kind, line) -> tuple[np.ndarray, np.ndarray, int, np.ndarray]:
     keys = ("node_nums", "def_cs", "disp_cs", "color", "x", "y", "z")
     try:
         cols = [np.asarray(dset[key], dtype=float).ravel() for key in keys]
@@ -356,16 +365,63 @@ def _nodes(path, dset, kind, line) -> tuple[np.ndarray, np.ndarray, int]:
             k = int(np.argmax(~np.isfinite(c) | (c != np.round(c)) | (c < 0)))
             raise FEReadError(path, f"{what} must be non-negative integers, got {c[k]!r} for node record "
                               f"{k + 1}: a record is corrupt or misaligned", dataset=str(kind), line=line)
-    cs = np.unique(np.concatenate([cols[1], cols[2]]))
-    if np.any(cs > 1):
-        log.warning("%s: nodes use coordinate systems %s; they are taken as the global system (dataset 2420 "
-                    "is not applied)", path, cs[cs > 1].astype(int).tolist())
     xyz = np.column_stack(cols[4:7])
     if not np.all(np.isfinite(xyz)):
         k = int(np.argmax(~np.all(np.isfinite(xyz), axis=1)))
         raise FEReadError(path, f"node {ids[k]} has non-finite coordinates {xyz[k].tolist()}",
                           dataset=str(kind), line=line)
-    return ids, xyz, line
+    return ids, xyz, line, np.column_stack(cols[1:3]).astype(int)
+
+
+def _coordinate_systems(path, dset, line) -> dict[int, tuple[int, str, np.ndarray]]:
+    """Dataset 2420 through pyuff: label -> (type 0/1/2, name, 4 x 3 matrix: rotation rows, then the origin)."""
+    try:
+        labels = [int(v) for v in dset["CS_sys_labels"]]
+        types = [int(v) for v in dset["CS_types"]]
+        names = [str(v) for v in dset["CS_names"]]
+        mats = [np.asarray(m, dtype=float).reshape(4, 3) for m in dset["CS_matrices"]]
+    except (KeyError, TypeError, ValueError) as exc:
+        raise FEReadError(path, f"pyuff returned no usable coordinate-system table ({exc!r})", dataset="2420",
+                          line=line) from exc
+    if not len(labels) == len(types) == len(names) == len(mats):
+        raise FEReadError(path, "coordinate systems with missing records (label, type, name and 4 matrix rows "
+                          "each): a record is truncated", dataset="2420", line=line)
+    return {lab: (typ, name, m) for lab, typ, name, m in zip(labels, types, names, mats)}
+
+
+_CS_TYPES = {0: "Cartesian", 1: "cylindrical", 2: "spherical"}
+
+
+def _check_node_systems(path, node_ids, node_cs, systems, line, scale: float) -> None:
+    """Nodes must be given in the global Cartesian system (coordinates and displacements).
+
+    Labels 0 and 1 are the global system in the exporters' convention. A system that dataset 2420 defines as
+    Cartesian with the identity rotation at the origin is the global one under another label. Any other system
+    is refused: taking its coordinates or mode shapes as global would build a wrong geometry and wrong MACs.
+    A label that no 2420 dataset defines cannot be checked: logged as taken to be global.
+    """
+    undefined = []
+    for lab in np.unique(node_cs):
+        if lab <= 1 and lab not in systems:
+            continue
+        if lab not in systems:
+            undefined.append(int(lab))
+            continue
+        typ, name, m = systems[lab]
+        tol = 1e-9 * max(scale, 1.0)
+        if typ == 0 and np.allclose(m[:3], np.eye(3), rtol=0.0, atol=1e-9) and np.all(np.abs(m[3]) <= tol):
+            continue
+        used = node_ids[np.any(node_cs == lab, axis=1)]
+        which = ("coordinates and displacements" if np.all(node_cs[np.any(node_cs == lab, axis=1)] == lab) else
+                 "coordinates or displacements")
+        raise FEReadError(path, f"{used.size} node(s) ({_ranges(used.tolist()[:50])}{', ...' if used.size > 50 else ''}"
+                          f") give their {which} in coordinate system {int(lab)} ({_CS_TYPES.get(typ, f'type {typ}')}"
+                          f"{', ' + repr(name.strip()) if name.strip() else ''}; dataset 2420: origin "
+                          f"{m[3].tolist()}, not the global system); this reader takes nodes and mode shapes in the "
+                          "global Cartesian system only: export them in the global system", dataset="2411", line=line)
+    if undefined:
+        log.warning("%s: nodes use coordinate systems %s that no dataset 2420 defines; they are taken as the global "
+                    "system", path, undefined)
 
 
 def _elements(path, dset, line, known: set[int] | None) -> list[Element]:

@@ -380,3 +380,54 @@ def test_uff_2414_complex_modes_are_refused(tmp_path):
     path.write_text(text.replace(old, "".join(f"{v:10d}" for v in (1, 3, 3, 8, 4, 6)), 1))
     with pytest.raises(FEReadError, match=r"dataset 2414 \(mode 1\).*analysis type 3 \(complex eigenvalue\)"):
         fem_import.read(path)
+
+
+def _dataset_2420(label: int, kind: int, rotation: np.ndarray, origin) -> str:
+    """One dataset 2420 (coordinate systems) as I-DEAS-style exporters write it."""
+    rows = [*np.asarray(rotation, float), np.asarray(origin, float)]
+    return ("    -1\n  2420\n         1\nPART\n" + f"{label:10d}{kind:10d}{8:10d}\nLOCAL {label}\n"
+            + "".join("".join(f"{v:25.16E}" for v in r) + "\n" for r in rows) + "    -1\n")
+
+
+def _nodes_in_system(text: str, nodes, label: int) -> str:
+    for n in nodes:
+        old = f"{n:10d}{0:10d}{0:10d}{1:10d}\n"
+        assert text.count(old) == 1
+        text = text.replace(old, f"{n:10d}{label:10d}{label:10d}{1:10d}\n")
+    return text
+
+
+@pytest.mark.parametrize("kind, rotation, origin, refused", [
+    (0, np.eye(3), (0.0, 0.0, 0.0), None),                                  # the global system under label 5
+    (0, [[0, 1, 0], [-1, 0, 0], [0, 0, 1]], (0.0, 0.0, 0.0), "Cartesian"),  # rotated 90 deg about z
+    (0, np.eye(3), (0.0, 0.0, 0.75), "Cartesian"),                          # shifted to the wheel's plane
+    (1, np.eye(3), (0.0, 0.0, 0.0), "cylindrical"),                         # r, theta, z about the axle
+])
+def test_uff_nodes_in_a_local_coordinate_system(tmp_path, caplog, kind, rotation, origin, refused):
+    """Nodes whose coordinates and displacements are in a local system of dataset 2420: read when that system is
+    the global one under another label, otherwise refused with the nodes and the system named (taking local
+    coordinates or shapes as global would give a wrong geometry and wrong MACs without a word)."""
+    text = _uff_text(tmp_path)
+    base = fem_import.read(tmp_path / "base.uff")
+    path = tmp_path / "local.uff"
+    path.write_text(_dataset_2420(5, kind, rotation, origin) + _nodes_in_system(text, (12, 13), 5))
+    if refused is None:
+        with caplog.at_level(logging.WARNING, logger="fem_import"):
+            got = fem_import.read(path)
+        assert not [r for r in caplog.records if "coordinate system" in r.getMessage()]
+        np.testing.assert_array_equal(got.shapes, base.shapes)
+        np.testing.assert_array_equal(got.xyz, base.xyz)
+        return
+    with pytest.raises(FEReadError, match=rf"local\.uff, dataset 2411.*2 node\(s\) \(12-13\) give their coordinates "
+                                          rf"and displacements in coordinate system 5 \({refused}, 'LOCAL 5'"):
+        fem_import.read(path)
+
+
+def test_uff_nodes_in_an_undefined_coordinate_system_are_read_with_a_warning(tmp_path, caplog):
+    text = _uff_text(tmp_path)
+    path = tmp_path / "undefined.uff"
+    path.write_text(_nodes_in_system(text, (12,), 7))
+    with caplog.at_level(logging.WARNING, logger="fem_import"):
+        got = fem_import.read(path)
+    assert any("coordinate systems [7] that no dataset 2420 defines" in r.getMessage() for r in caplog.records)
+    np.testing.assert_array_equal(got.xyz, fem_import.read(tmp_path / "base.uff").xyz)
