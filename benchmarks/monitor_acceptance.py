@@ -69,6 +69,11 @@ def _line_file(camp, work: Path, loss_reference_hz: float | None) -> Path:
     return out
 
 
+def _track_model(loss_reference_hz: float | None) -> str:
+    return "track model: " + ("eq. 2.32 (constant loss factors)" if loss_reference_hz is None else
+                              f"causal layers, stated stiffness at {loss_reference_hz:g} Hz")
+
+
 def _ingest(camp, work: Path, name: str, mon, reuse: bool = False, line_file: Path | None = None):
     from test_estimator_synthetic import control_model
 
@@ -99,7 +104,7 @@ def _ingest(camp, work: Path, name: str, mon, reuse: bool = False, line_file: Pa
     return spec, store, res
 
 
-def averaging(work: Path, mon, reuse: bool = False) -> dict:
+def averaging(work: Path, mon, reuse: bool = False, loss_reference_hz: float | None = None) -> dict:
     from lab_data.line.cache import line_campaign_dir
     from monitor_truth import truth_json, truth_windows
 
@@ -110,8 +115,11 @@ def averaging(work: Path, mon, reuse: bool = False) -> dict:
 
     camp = line_campaign_dir("nominal", **AVERAGING)
     _say(f"\n=== averaging campaign {camp.name}: 1 day x 7 runs ===")
-    spec, store, res = _ingest(camp, work, "averaging", mon, reuse)
-    m = monitor(store, line_file=camp / "line.json", cfg=mon)
+    line_file = _line_file(camp, work, loss_reference_hz)
+    name = "averaging" if loss_reference_hz is None else f"averaging_loss_reference_{loss_reference_hz:g}Hz"
+    _say(_track_model(loss_reference_hz))
+    spec, store, res = _ingest(camp, work, name, mon, reuse, line_file)
+    m = monitor(store, line_file=line_file, cfg=mon)
     date = res.dates[0]
     truth = truth_windows(camp, date, mon.window_m)
     # --- single runs vs the day average on the corrugated patch, per rail and band
@@ -192,8 +200,7 @@ def growth(work: Path, mon, reuse: bool = False, loss_reference_hz: float | None
     _say(f"\n=== growth campaign {camp.name}: 5 days x 2 runs; truth: ground {g['date']} on {g['sections_m']} ===")
     line_file = _line_file(camp, work, loss_reference_hz)
     name = "growth" if loss_reference_hz is None else f"growth_loss_reference_{loss_reference_hz:g}Hz"
-    _say("track model: " + ("eq. 2.32 (constant loss factors)" if loss_reference_hz is None else
-                            f"causal layers, stated stiffness at {loss_reference_hz:g} Hz"))
+    _say(_track_model(loss_reference_hz))
     spec, store, res = _ingest(camp, work, name, mon, reuse, line_file)
     cfg = mon.replace(thresholds_um=FORECAST_THRESHOLDS_UM)
     m = monitor(store, line_file=line_file, cfg=cfg)
@@ -276,7 +283,7 @@ def main(argv=None) -> int:
                     help="runs per day of the growth campaign through the systematic variants (no perturbed "
                          "models): the forecast's interval then holds the systematic part")
     ap.add_argument("--loss-reference-hz", type=float, default=None,
-                    help="growth campaign: the trackforms' pads follow the causal constant-loss law with their "
+                    help="both campaigns: the trackforms' pads follow the causal constant-loss law with their "
                          "stated stiffness at this frequency (e.g. the field diagnosis's dynamic_stiffening fit)")
     ap.add_argument("--work", default=None, help="work folder (default: a temporary one, removed)")
     ap.add_argument("--reuse", action="store_true", help="use the stores already in --work (days averaged again)")
@@ -287,7 +294,7 @@ def main(argv=None) -> int:
     try:
         if a.part in ("averaging", "all"):
             averaging(work, MonitoringConfig(n_perturbed=a.n_perturbed, uncertainty_runs=a.uncertainty_runs,
-                                             sensor_noise_rms_m_s2=SENSOR_NOISE_M_S2), a.reuse)
+                                             sensor_noise_rms_m_s2=SENSOR_NOISE_M_S2), a.reuse, a.loss_reference_hz)
         if a.part in ("growth", "all"):
             growth(work, MonitoringConfig(n_perturbed=0, uncertainty_runs=a.growth_uncertainty_runs,
                                           sensor_noise_rms_m_s2=SENSOR_NOISE_M_S2), a.reuse, a.loss_reference_hz)
