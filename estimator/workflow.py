@@ -383,7 +383,8 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
     v_kept = np.abs(track.speed_at(t_run)[kept])
     v_slow = max(cfg.speed_gate_m_s, float(v_kept.min())) if v_kept.size else cfg.speed_gate_m_s
     dx_target, lam_min = spatial_step(v_slow, f_hi)
-    steps = [*fm.provenance, f"orientation: {orient.direction}/{orient.orientation}, leading wheelset {orient.leading}, vehicle "
+    steps = [*fm.provenance,
+             f"orientation: {orient.direction}/{orient.orientation}, leading wheelset {orient.leading}, vehicle "
              f"L on rail {orient.rail_of_side['L']}",
              f"chainage from the odometer: {len(track.resets)} balise reset(s) corrected, "
              f"{len(track.untrusted)} stretch(es) not trusted"]
