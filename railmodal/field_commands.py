@@ -35,7 +35,6 @@ def summarise_estimate(est, files: dict | None = None) -> list[str]:
              f"{100 * est.masked_share.get('run', 0.0):.1f} %, {len(est.qc)} quality-control finding(s)",
              f"wheelbase {est.wheelbase_m:.3f} m ({est.wheelbase_source}); inversion band {est.band_hz[0]:g}-"
              f"{est.band_hz[1]:g} Hz; shortest resolved wavelength {1e3 * est.lambda_min_m:.1f} mm"]
-    lines += [p for p in getattr(est, "processing", ()) if p.startswith("field calibration ")]
     for s in est.skipped:
         lines.append(f"not estimated: {s}")
     c = est.corrugation
@@ -93,7 +92,6 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
         from estimator.diagnosis import calibrated_field_model
 
         fm, _ = calibrated_field_model(fm, args.model, args.calibration)
-        step(fm.provenance[-1])
     reference = None
     if args.reference:
         reference = reference_indexes(read_trolley(args.reference), cfg)
@@ -103,7 +101,7 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
     with staged_output(out) as tmp:
         files = write_estimate(est, tmp, reference=reference)
     files = {k: out / Path(v).relative_to(tmp) for k, v in files.items()}
-    for line in summarise_estimate(est, files):
+    for line in (*fm.provenance, *summarise_estimate(est, files)):
         print(line)
     print(f"done in {time.perf_counter() - t0:.1f} s")
     return 0

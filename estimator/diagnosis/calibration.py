@@ -23,6 +23,7 @@ from pathlib import Path
 
 from estimator.diagnosis.errors import CalibrationFileError
 from estimator.diagnosis.state import FieldState, field_model_for
+from estimator.monitoring.records import file_hash
 
 __all__ = ["FORMAT", "FORMAT_VERSION", "save_calibration", "load_calibration", "calibrated_field_model",
            "calibration_version"]
@@ -30,14 +31,6 @@ __all__ = ["FORMAT", "FORMAT_VERSION", "save_calibration", "load_calibration", "
 FORMAT = "railmodal-field-calibration"
 FORMAT_VERSION = 1
 _MAX_BYTES = 5_000_000
-
-
-def _sha(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()[:16]
 
 
 def calibration_version(model_hash: str, state: FieldState) -> str:
@@ -54,7 +47,7 @@ def save_calibration(folder, model_file, state: FieldState, *, site, date: str, 
     d.mkdir(parents=True, exist_ok=True)
     src = Path(model_file)
     shutil.copyfile(src, d / src.name)
-    mh = _sha(src)
+    mh = file_hash(src)
     doc = {"format": FORMAT, "format_version": FORMAT_VERSION, "version": calibration_version(mh, state),
            "model_file": src.name, "model_hash": mh, "site_m": [float(site[0]), float(site[1])],
            "calibration_date": date, "state": state.as_dict(), **(extra or {})}
@@ -81,9 +74,9 @@ def load_calibration(folder) -> tuple[FieldState, dict]:
         raise CalibrationFileError(f"{p}: format version {doc.get('format_version')!r}; this toolkit reads up to "
                                    f"{FORMAT_VERSION}")
     model = p.parent / str(doc.get("model_file", ""))
-    if model.is_file() and _sha(model) != doc.get("model_hash"):
+    if model.is_file() and (mh := file_hash(model)) != doc.get("model_hash"):
         raise CalibrationFileError(f"{p}: the model file {model.name} is not the one calibrated (hash "
-                                   f"{_sha(model)} != {doc.get('model_hash')})")
+                                   f"{mh} != {doc.get('model_hash')})")
     try:
         state = FieldState.from_dict(doc["state"])
     except (KeyError, TypeError, ValueError) as exc:
@@ -116,7 +109,7 @@ def calibrated_field_model(fm, model_file, folder):
         The calibration is unreadable, or was made for another model file (both hashes are named).
     """
     state, doc = load_calibration(folder)
-    mh = _sha(Path(model_file))
+    mh = file_hash(Path(model_file))
     if doc.get("model_hash") != mh:
         raise CalibrationFileError(f"{folder}: calibrates the model with hash {doc.get('model_hash')}, not "
                                    f"{Path(model_file).name} (hash {mh}); run 'railmodal field diagnose' with this "
