@@ -14,8 +14,10 @@ Two small campaigns of the nominal line around curve 1 (section 400–800 m; the
   truth's, and the threshold-crossing forecast made on the last day before the grinding against the truth's
   crossing date (the truth's rails regenerated without the grinding, bisection to the day).
 
-The hybrid model is the lab's control wheelset (tests/test_estimator_synthetic.control_model), the truth's
-oracle helpers are tests/monitor_truth.py. Runs cost ~5 s each plus ~10 s per perturbed or shifted model on the
+The hybrid model is the lab's control wheelset as the lab workflow saves it from a design FE exported to 2 kHz
+(tests/test_estimator_synthetic.lab_workflow_model; in service its modes above the test band enter the
+receptances); ``--fe-export-hz none`` gives the model of the 500 Hz test band alone. The truth's oracle helpers
+are tests/monitor_truth.py. Runs cost ~5 s each plus ~10 s per perturbed or shifted model on the
 uncertainty runs; the defaults (25 perturbed models, 2 uncertainty runs) take ~15 min on one core.
 
     python benchmarks/monitor_acceptance.py [--part averaging|growth|all] [--n-perturbed 25] [--uncertainty-runs 2]
@@ -74,16 +76,36 @@ def _track_model(loss_reference_hz: float | None) -> str:
                               f"causal layers, stated stiffness at {loss_reference_hz:g} Hz")
 
 
-def _ingest(camp, work: Path, name: str, mon, reuse: bool = False, line_file: Path | None = None):
-    from test_estimator_synthetic import control_model
+def _model_file(work: Path, fe_export_hz: float | None) -> Path:
+    """The field model: the lab's control wheelset (its design FE to the 500 Hz test band), or, with
+    ``fe_export_hz``, the model the lab workflow saves from a design FE exported that high (every FE mode kept;
+    in service the modes above the test band enter the receptances)."""
+    from test_estimator_synthetic import control_model, lab_workflow_model
 
     from receptance.model_io import save_model
 
+    if fe_export_hz is None:
+        model = work / "hybrid_model.npz"
+        if not model.exists():
+            save_model(control_model(), model)
+        return model
+    model = work / f"hybrid_model_fe_{fe_export_hz:g}Hz.npz"
+    if not model.exists():
+        save_model(lab_workflow_model(fe_export_hz), model)
+    return model
+
+
+def _store_name(part: str, loss_reference_hz: float | None, fe_export_hz: float | None) -> str:
+    return part + ("" if loss_reference_hz is None else f"_loss_reference_{loss_reference_hz:g}Hz") + (
+        "" if fe_export_hz is None else f"_fe_{fe_export_hz:g}Hz")
+
+
+def _ingest(camp, work: Path, name: str, mon, reuse: bool = False, line_file: Path | None = None,
+            fe_export_hz: float | None = None):
     from estimator.monitoring import IngestResult, IngestSpec, MonitoringStore, ingest, update_days
 
-    model = work / "hybrid_model.npz"
-    if not model.exists():
-        save_model(control_model(), model)
+    model = _model_file(work, fe_export_hz)
+    _say(f"field model: {model.name}")
     spec = IngestSpec(str(model), str(camp / "sensors.csv"), line=str(line_file or camp / "line.json"), monitoring=mon)
     store = MonitoringStore(work / name)
     t0 = time.perf_counter()
@@ -104,7 +126,8 @@ def _ingest(camp, work: Path, name: str, mon, reuse: bool = False, line_file: Pa
     return spec, store, res
 
 
-def averaging(work: Path, mon, reuse: bool = False, loss_reference_hz: float | None = None) -> dict:
+def averaging(work: Path, mon, reuse: bool = False, loss_reference_hz: float | None = None,
+              fe_export_hz: float | None = None) -> dict:
     from lab_data.line.cache import line_campaign_dir
     from monitor_truth import truth_json, truth_windows
 
@@ -116,9 +139,9 @@ def averaging(work: Path, mon, reuse: bool = False, loss_reference_hz: float | N
     camp = line_campaign_dir("nominal", **AVERAGING)
     _say(f"\n=== averaging campaign {camp.name}: 1 day x 7 runs ===")
     line_file = _line_file(camp, work, loss_reference_hz)
-    name = "averaging" if loss_reference_hz is None else f"averaging_loss_reference_{loss_reference_hz:g}Hz"
     _say(_track_model(loss_reference_hz))
-    spec, store, res = _ingest(camp, work, name, mon, reuse, line_file)
+    spec, store, res = _ingest(camp, work, _store_name("averaging", loss_reference_hz, fe_export_hz), mon, reuse,
+                               line_file, fe_export_hz)
     m = monitor(store, line_file=line_file, cfg=mon)
     date = res.dates[0]
     truth = truth_windows(camp, date, mon.window_m)
@@ -187,7 +210,8 @@ def averaging(work: Path, mon, reuse: bool = False, loss_reference_hz: float | N
     return {"average": avg, "coverage": cov, "coverage_calibrated": cov_cal, "trolley": tab, "runs": res.runs}
 
 
-def growth(work: Path, mon, reuse: bool = False, loss_reference_hz: float | None = None) -> dict:
+def growth(work: Path, mon, reuse: bool = False, loss_reference_hz: float | None = None,
+           fe_export_hz: float | None = None) -> dict:
     from lab_data.line.cache import line_campaign_dir
     from monitor_truth import crossing_date, section_levels, truth_json, truth_windows
 
@@ -199,9 +223,9 @@ def growth(work: Path, mon, reuse: bool = False, loss_reference_hz: float | None
     g = tj["grinding"]
     _say(f"\n=== growth campaign {camp.name}: 5 days x 2 runs; truth: ground {g['date']} on {g['sections_m']} ===")
     line_file = _line_file(camp, work, loss_reference_hz)
-    name = "growth" if loss_reference_hz is None else f"growth_loss_reference_{loss_reference_hz:g}Hz"
     _say(_track_model(loss_reference_hz))
-    spec, store, res = _ingest(camp, work, name, mon, reuse, line_file)
+    spec, store, res = _ingest(camp, work, _store_name("growth", loss_reference_hz, fe_export_hz), mon, reuse,
+                               line_file, fe_export_hz)
     cfg = mon.replace(thresholds_um=FORECAST_THRESHOLDS_UM)
     m = monitor(store, line_file=line_file, cfg=cfg)
     truth = pd.concat([truth_windows(camp, d, mon.window_m) for d in res.dates], ignore_index=True)
@@ -264,7 +288,7 @@ def _outliers(work: Path) -> str:
     from estimator.monitoring.outliers import outlying_estimates
 
     out = []
-    for name in ("averaging", "growth"):
+    for name in sorted(d.name for d in work.iterdir() if d.is_dir() and d.name.startswith(("averaging", "growth"))):
         if (work / name).is_dir():
             o = outlying_estimates(MonitoringStore(work / name).read("windows"))
             out.append(f"\n{name}: estimates left out of the day averages (beyond the day's scatter): {len(o)}"
@@ -285,6 +309,10 @@ def main(argv=None) -> int:
     ap.add_argument("--loss-reference-hz", type=float, default=None,
                     help="both campaigns: the trackforms' pads follow the causal constant-loss law with their "
                          "stated stiffness at this frequency (e.g. the field diagnosis's dynamic_stiffening fit)")
+    ap.add_argument("--fe-export-hz", type=lambda t: None if t.lower() == "none" else float(t), default=2000.0,
+                    help="the field model as the lab workflow saves it from the design FE exported to this "
+                         "frequency, every mode kept (default 2000); 'none': the control model of the 500 Hz "
+                         "test band (tests/test_estimator_synthetic.control_model)")
     ap.add_argument("--work", default=None, help="work folder (default: a temporary one, removed)")
     ap.add_argument("--reuse", action="store_true", help="use the stores already in --work (days averaged again)")
     a = ap.parse_args(argv)
@@ -294,10 +322,12 @@ def main(argv=None) -> int:
     try:
         if a.part in ("averaging", "all"):
             averaging(work, MonitoringConfig(n_perturbed=a.n_perturbed, uncertainty_runs=a.uncertainty_runs,
-                                             sensor_noise_rms_m_s2=SENSOR_NOISE_M_S2), a.reuse, a.loss_reference_hz)
+                                             sensor_noise_rms_m_s2=SENSOR_NOISE_M_S2), a.reuse, a.loss_reference_hz,
+                      a.fe_export_hz)
         if a.part in ("growth", "all"):
             growth(work, MonitoringConfig(n_perturbed=0, uncertainty_runs=a.growth_uncertainty_runs,
-                                          sensor_noise_rms_m_s2=SENSOR_NOISE_M_S2), a.reuse, a.loss_reference_hz)
+                                          sensor_noise_rms_m_s2=SENSOR_NOISE_M_S2), a.reuse, a.loss_reference_hz,
+                   a.fe_export_hz)
         _say(_outliers(work))
     finally:
         if not a.work:
