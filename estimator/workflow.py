@@ -181,10 +181,11 @@ def with_every_mode(model):
     if cap is None:
         return model
     above = int(np.sum(np.asarray(model.freqs_hz) > cap))
+    if not above:  # nothing above the cap: lifting it changes no receptance
+        return replace(model, max_hz=None)
     step = (f"in service: the {above} FE mode(s) above the test band's {cap:g} Hz enter the receptances (their "
             f"flexibility at the wheel-rail contact)")
-    if above:
-        log.info("model %s: %s", getattr(model, "name", ""), step)
+    log.info("model %s: %s", getattr(model, "name", ""), step)
     return replace(model, max_hz=None, history=tuple(model.history) + (step,))
 
 
@@ -438,11 +439,12 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
     v_kept = np.abs(track.speed_at(t_run)[kept])
     v_slow = max(cfg.speed_gate_m_s, float(v_kept.min())) if v_kept.size else cfg.speed_gate_m_s
     dx_target, lam_min = spatial_step(v_slow, f_hi)
-    basis, short = modal_basis(fm.model, f_hi)
-    if short and ("basis", f_hi) not in fm.cache:
-        log.warning("%s", basis)
-    fm.cache[("basis", f_hi)] = basis
-    steps = [*fm.provenance, basis,
+    if ("basis", f_hi) not in fm.cache:  # once per model and band: the note, and the warning when it is short
+        basis, short = modal_basis(fm.model, f_hi)
+        if short:
+            log.warning("%s", basis)
+        fm.cache[("basis", f_hi)] = basis
+    steps = [*fm.provenance, fm.cache[("basis", f_hi)],
              f"orientation: {orient.direction}/{orient.orientation}, leading wheelset {orient.leading}, vehicle "
              f"L on rail {orient.rail_of_side['L']}",
              f"chainage from the odometer: {len(track.resets)} balise reset(s) corrected, "

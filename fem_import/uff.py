@@ -401,6 +401,7 @@ def _check_node_systems(path, node_ids, node_cs, systems, line, scale: float) ->
     A label that no 2420 dataset defines cannot be checked: logged as taken to be global.
     """
     undefined = []
+    tol = 1e-9 * max(scale, 1.0)
     for lab in np.unique(node_cs):
         if lab <= 1 and lab not in systems:
             continue
@@ -408,12 +409,11 @@ def _check_node_systems(path, node_ids, node_cs, systems, line, scale: float) ->
             undefined.append(int(lab))
             continue
         typ, name, m = systems[lab]
-        tol = 1e-9 * max(scale, 1.0)
         if typ == 0 and np.allclose(m[:3], np.eye(3), rtol=0.0, atol=1e-9) and np.all(np.abs(m[3]) <= tol):
             continue
-        used = node_ids[np.any(node_cs == lab, axis=1)]
-        which = ("coordinates and displacements" if np.all(node_cs[np.any(node_cs == lab, axis=1)] == lab) else
-                 "coordinates or displacements")
+        rows = np.any(node_cs == lab, axis=1)
+        used = node_ids[rows]
+        which = "coordinates and displacements" if np.all(node_cs[rows] == lab) else "coordinates or displacements"
         raise FEReadError(path, f"{used.size} node(s) ({_ranges(used.tolist()[:50])}{', ...' if used.size > 50 else ''}"
                           f") give their {which} in coordinate system {int(lab)} ({_CS_TYPES.get(typ, f'type {typ}')}"
                           f"{', ' + repr(name.strip()) if name.strip() else ''}; dataset 2420: origin "

@@ -175,8 +175,9 @@ def run_context(spec: IngestSpec) -> _Context:
         from estimator.workflow import prepare
 
         fm = prepare(spec.model, spec.sensors, line=spec.line, config=spec.estimator)
-        version = file_hash(spec.model)
-        if spec.calibration is not None:
+        if spec.calibration is None:
+            version = file_hash(spec.model)
+        else:  # the calibration hashes the model file itself (its check and its version)
             from estimator.diagnosis import calibrated_field_model
 
             fm, version = calibrated_field_model(fm, spec.model, spec.calibration)
