@@ -43,34 +43,35 @@ def sensor_table() -> pd.DataFrame:
 
 
 @functools.lru_cache(maxsize=1)
-def control_model():
-    """Hybrid model of the virtual lab's control wheelset (truth pairing) with the primary suspension."""
+def _control_design(**config):
+    """The virtual lab's control campaign (``config``: CampaignConfig fields): design FE, truth pairing, points."""
     import fem_import
     from lab_data.cache import campaign_dir
-    from receptance import PrimarySuspension, hybrid_model, read_points
+    from receptance import read_points
     from test_hybrid_model import truth_pairing
 
-    d = campaign_dir("control")
+    d = campaign_dir("control", **config)
     man = json.loads((d / "truth.json").read_text())
-    fe = fem_import.read(d / "fe_design.uff")
-    return hybrid_model(fe, truth_pairing(man), points=read_points(d / "points.csv")).with_modification(
-        PrimarySuspension())
+    return fem_import.read(d / "fe_design.uff"), truth_pairing(man), read_points(d / "points.csv")
+
+
+def control_model():
+    """Hybrid model of the virtual lab's control wheelset (truth pairing) with the primary suspension."""
+    from receptance import PrimarySuspension, hybrid_model
+
+    fe, pairing, points = _control_design()
+    return hybrid_model(fe, pairing, points=points).with_modification(PrimarySuspension())
 
 
 def lab_workflow_model(fe_export_hz: float | None = 2000.0, max_hz: float | None = 500.0):
     """The control wheelset's hybrid model as the lab workflow saves it: the design FE exported to
     ``fe_export_hz`` (None: the campaign's default, the 500 Hz test band), every FE mode kept and the model
     reported to ``max_hz``, with the primary suspension."""
-    import fem_import
-    from lab_data.cache import campaign_dir
-    from receptance import PrimarySuspension, hybrid_model, read_points
-    from test_hybrid_model import truth_pairing
+    from receptance import PrimarySuspension, hybrid_model
 
-    d = campaign_dir("control", **({} if fe_export_hz is None else {"fe_export_hz": fe_export_hz}))
-    man = json.loads((d / "truth.json").read_text())
-    fe = fem_import.read(d / "fe_design.uff")
-    return hybrid_model(fe, truth_pairing(man), points=read_points(d / "points.csv"), keep_fe="all",
-                        max_hz=max_hz).with_modification(PrimarySuspension())
+    fe, pairing, points = _control_design(**({} if fe_export_hz is None else {"fe_export_hz": fe_export_hz}))
+    return hybrid_model(fe, pairing, points=points, keep_fe="all", max_hz=max_hz).with_modification(
+        PrimarySuspension())
 
 
 @dataclass
