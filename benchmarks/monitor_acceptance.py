@@ -100,13 +100,18 @@ def _store_name(part: str, loss_reference_hz: float | None, fe_export_hz: float 
         "" if fe_export_hz is None else f"_fe_{fe_export_hz:g}Hz")
 
 
-def _ingest(camp, work: Path, name: str, mon, reuse: bool = False, line_file: Path | None = None,
+def _ingest(camp, work: Path, part: str, mon, reuse: bool = False, loss_reference_hz: float | None = None,
             fe_export_hz: float | None = None):
+    """Every run of the campaign into the store of this part, track model and field model; returns the spec,
+    the store, the ingest result and the line file the runs were estimated with."""
     from estimator.monitoring import IngestResult, IngestSpec, MonitoringStore, ingest, update_days
 
+    line_file = _line_file(camp, work, loss_reference_hz)
+    _say(_track_model(loss_reference_hz))
     model = _model_file(work, fe_export_hz)
     _say(f"field model: {model.name}")
-    spec = IngestSpec(str(model), str(camp / "sensors.csv"), line=str(line_file or camp / "line.json"), monitoring=mon)
+    name = _store_name(part, loss_reference_hz, fe_export_hz)
+    spec = IngestSpec(str(model), str(camp / "sensors.csv"), line=str(line_file), monitoring=mon)
     store = MonitoringStore(work / name)
     t0 = time.perf_counter()
     if reuse and (work / name).is_dir():  # the runs as stored; only the days are averaged again
@@ -123,7 +128,7 @@ def _ingest(camp, work: Path, name: str, mon, reuse: bool = False, line_file: Pa
         _say(res.failures[["run_id", "error"]].to_string(index=False))
     cols = ["run_id", "date", "direction", "aligned", "alignment_residual_mm", "wheelbase_m", "wheelbase_source"]
     _say(res.runs[[c for c in cols if c in res.runs.columns]].to_string(index=False))
-    return spec, store, res
+    return spec, store, res, line_file
 
 
 def averaging(work: Path, mon, reuse: bool = False, loss_reference_hz: float | None = None,
@@ -138,10 +143,7 @@ def averaging(work: Path, mon, reuse: bool = False, loss_reference_hz: float | N
 
     camp = line_campaign_dir("nominal", **AVERAGING)
     _say(f"\n=== averaging campaign {camp.name}: 1 day x 7 runs ===")
-    line_file = _line_file(camp, work, loss_reference_hz)
-    _say(_track_model(loss_reference_hz))
-    spec, store, res = _ingest(camp, work, _store_name("averaging", loss_reference_hz, fe_export_hz), mon, reuse,
-                               line_file, fe_export_hz)
+    spec, store, res, line_file = _ingest(camp, work, "averaging", mon, reuse, loss_reference_hz, fe_export_hz)
     m = monitor(store, line_file=line_file, cfg=mon)
     date = res.dates[0]
     truth = truth_windows(camp, date, mon.window_m)
@@ -222,10 +224,7 @@ def growth(work: Path, mon, reuse: bool = False, loss_reference_hz: float | None
     tj = truth_json(camp)
     g = tj["grinding"]
     _say(f"\n=== growth campaign {camp.name}: 5 days x 2 runs; truth: ground {g['date']} on {g['sections_m']} ===")
-    line_file = _line_file(camp, work, loss_reference_hz)
-    _say(_track_model(loss_reference_hz))
-    spec, store, res = _ingest(camp, work, _store_name("growth", loss_reference_hz, fe_export_hz), mon, reuse,
-                               line_file, fe_export_hz)
+    spec, store, res, line_file = _ingest(camp, work, "growth", mon, reuse, loss_reference_hz, fe_export_hz)
     cfg = mon.replace(thresholds_um=FORECAST_THRESHOLDS_UM)
     m = monitor(store, line_file=line_file, cfg=cfg)
     truth = pd.concat([truth_windows(camp, d, mon.window_m) for d in res.dates], ignore_index=True)
@@ -282,17 +281,16 @@ def growth(work: Path, mon, reuse: bool = False, loss_reference_hz: float | None
     return {"daily": daily, "grinding": ev, "forecast": ftab}
 
 
-def _outliers(work: Path) -> str:
-    """The estimates the day averages left out, per store."""
+def _outliers(work: Path, names: list[str]) -> str:
+    """The estimates the day averages left out, per store of this invocation."""
     from estimator.monitoring import MonitoringStore
     from estimator.monitoring.outliers import outlying_estimates
 
     out = []
-    for name in sorted(d.name for d in work.iterdir() if d.is_dir() and d.name.startswith(("averaging", "growth"))):
-        if (work / name).is_dir():
-            o = outlying_estimates(MonitoringStore(work / name).read("windows"))
-            out.append(f"\n{name}: estimates left out of the day averages (beyond the day's scatter): {len(o)}"
-                       + ("\n" + o.to_string(index=False, float_format=lambda v: f"{v:.2f}") if len(o) else ""))
+    for name in names:
+        o = outlying_estimates(MonitoringStore(work / name).read("windows"))
+        out.append(f"\n{name}: estimates left out of the day averages (beyond the day's scatter): {len(o)}"
+                   + ("\n" + o.to_string(index=False, float_format=lambda v: f"{v:.2f}") if len(o) else ""))
     return "\n".join(out)
 
 
@@ -328,7 +326,8 @@ def main(argv=None) -> int:
             growth(work, MonitoringConfig(n_perturbed=0, uncertainty_runs=a.growth_uncertainty_runs,
                                           sensor_noise_rms_m_s2=SENSOR_NOISE_M_S2), a.reuse, a.loss_reference_hz,
                    a.fe_export_hz)
-        _say(_outliers(work))
+        parts = ("averaging", "growth") if a.part == "all" else (a.part,)
+        _say(_outliers(work, [_store_name(p, a.loss_reference_hz, a.fe_export_hz) for p in parts]))
     finally:
         if not a.work:
             shutil.rmtree(work, ignore_errors=True)
