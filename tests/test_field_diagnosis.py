@@ -533,3 +533,58 @@ def test_dynamic_stiffening_reaches_every_trackform_of_the_estimator_and_survive
     save_calibration(tmp_path / "cal", model, st, site=(0.0, 300.0), date="2026-01-05")
     back, _ = load_calibration(tmp_path / "cal")
     assert back == st
+
+
+def test_undetermined_parameter_returns_to_nominal_and_the_others_are_polished_again(monkeypatch):
+    """A polish that stalls with a parameter the error does not see sitting on its search bound (a stretch's
+    damping factor, started on its bound by the grid, as on the line's `trackform_change`) must not drag the
+    others down with it: every parameter is judged at that same optimum, so only the flat one is undetermined;
+    it returns to nominal and the others are polished again. Judged one after the other against the stale
+    optimum's error, the stretch's end (whose error rises 2 % over a quarter of its span) was reported as
+    undetermined and left at its start."""
+    from dataclasses import dataclass
+
+    import estimator.diagnosis.diagnose as dg
+    from estimator.diagnosis.effects import FieldEffect, Parameter
+
+    @dataclass(frozen=True)
+    class Toy(FieldEffect):
+        name = "toy"
+        parameters: tuple = (Parameter("factor", 0.0, 1.0, 0.5), Parameter("flat", 0.0, 1.0, 0.5),
+                             Parameter("end", 0.0, 1.0, 0.5))
+
+        def apply(self, state, values):
+            return values
+
+    class Evaluator:  # one calibration cell whose error is E(factor, flat, end); a plateau of "flat" above 0.7
+        evidence = type("Ev", (), {"segments": [None], "calibration": np.array([True])})()
+
+        @staticmethod
+        def errors(values, touched):
+            if not isinstance(values, dict):
+                return [np.array([[np.sqrt(3.0)]]) for _ in touched]
+            w = 0.5 * np.clip((values["flat"] - 0.3) / 0.4, 0.0, 1.0)
+            e2 = 1.0 + 4 * (values["factor"] - 0.37) ** 2 + (values["end"] - 0.8) ** 2 + w
+            return [np.array([[np.sqrt(e2)]]) for _ in touched]
+
+    pb = dg._Problem(Evaluator(), [np.array([[True]])], None, [np.array([[np.sqrt(3.0)]])], DiagnosisConfig())
+    pb.floor = 0.1
+    monkeypatch.setattr(dg, "_PROBLEM", pb)
+    real = dg._polish
+    calls = []
+
+    def stalled_first(err, u0, e0, free, step, maxfev):
+        calls.append(free.copy())
+        if len(calls) == 1:  # the first polish stalls on the plateau, the end already found
+            u = np.array([0.37, 1.0, 0.8])
+            return u, err(u)
+        return real(err, u0, e0, free, step, maxfev)
+
+    monkeypatch.setattr(dg, "_polish", stalled_first)
+    monkeypatch.setattr(dg, "_fixes", lambda *a: pd.DataFrame())  # the toy evidence has no bands
+    fit = dg._fit(Toy())
+    assert fit.undetermined == ("flat",)
+    assert fit.params["flat"] == 0.5
+    assert list(calls[1]) == [True, False, True]  # polished again without the undetermined one
+    assert fit.params["end"] == pytest.approx(0.8, abs=0.02) and fit.params["factor"] == pytest.approx(0.37, abs=0.02)
+    assert fit.error_after == pytest.approx(math.sqrt(1.25), abs=1e-3)  # "flat" at nominal: on its slope

@@ -25,13 +25,15 @@ state, and the catalogue is fitted again on top of it — until none passes
 
 Fit: a grid over the bounds (9 values for one parameter, 5 × 5 for two: in
 log for the factors) finds the basin, Nelder–Mead on the unit cube polishes
-it; an effect with ``n_grid`` set grids only its leading parameters (a
-stretch's two factors) and starts the others at their nominal values (its
-ends where the evidence located it), Nelder–Mead then moves all of them.
-Uncertainty (1σ) from the curvature of ``N ln E²`` at the optimum (a
-Gaussian likelihood whose variance is estimated: ``Δ(N ln E²) = 1`` at one
-σ). A parameter whose move by ± a quarter of its search span changes ``E``
-by less than ``undetermined_de`` is *undetermined*. Candidates are fitted in
+it (restarted once with a fresh simplex when it ends on a bound); an effect with ``n_grid`` set grids
+only its leading parameters (a stretch's two factors) and starts the others
+at their nominal values (its ends where the evidence located it), Nelder–Mead
+then moves all of them. Uncertainty (1σ) from the curvature of ``N ln E²`` at
+the optimum (a Gaussian likelihood whose variance is estimated:
+``Δ(N ln E²) = 1`` at one σ). A parameter whose move by ± a quarter of its
+search span changes ``E`` by less than ``undetermined_de`` is
+*undetermined*: it returns to its nominal value and the other parameters are
+polished again without it. Candidates are fitted in
 worker processes (fork: the evidence is shared, nothing is pickled but the
 results).
 """
@@ -302,17 +304,15 @@ def _fit(effect: FieldEffect) -> CandidateFit:
         rest = [p.to_unit(p.nominal) for p in params[ng:]]
         pts = np.stack([a.ravel() for a in axes] + [np.full(axes[0].size, r) for r in rest], axis=1)
         vals = np.array([err(p) for p in pts])
-        u0 = pts[int(np.argmin(vals))]
-        res = scipy.optimize.minimize(lambda u: err(np.clip(u, 0, 1)), u0, method="Nelder-Mead",
-                                      options={"maxfev": _NM_FEV * (1 + len(params) - ng), "xatol": 2e-3,
-                                               "fatol": 1e-4, "initial_simplex": _simplex(u0, 0.5 / (g - 1))})
-        u = np.clip(res.x, 0, 1) if res.fun < vals.min() else u0
-        e1 = min(float(res.fun), float(vals.min()))
+        u, e1 = _polish(err, pts[int(np.argmin(vals))], float(vals.min()), np.ones(len(params), bool),
+                        0.5 / (g - 1), _NM_FEV * (1 + len(params) - ng))
     else:
         u = np.zeros(0)
         e1 = err(u)
     # a parameter the error does not see (± a quarter of its span moves E by < undetermined_de) is undetermined:
-    # it goes back to its nominal value and is reported so, never as a fitted (or bound) value
+    # it goes back to its nominal value and is reported so, never as a fitted (or bound) value. Every parameter
+    # is judged at the same optimum; the others are then polished again with the undetermined ones at nominal
+    # (their optimum may have leant on an undetermined one sitting on its bound)
     undetermined = []
     for i, p in enumerate(params):
         q1, q2 = u.copy(), u.copy()
@@ -320,9 +320,15 @@ def _fit(effect: FieldEffect) -> CandidateFit:
         q2[i] = max(u[i] - 0.25, 0.0)
         if max(err(q1), err(q2)) - e1 < cfg.undetermined_de * e1:
             undetermined.append(p.name)
-            u[i] = p.to_unit(p.nominal)
     if undetermined:
+        free = np.array([p.name not in undetermined for p in params])
+        u = u.copy()
+        for i, p in enumerate(params):
+            if not free[i]:
+                u[i] = p.to_unit(p.nominal)
         e1 = err(u)
+        if free.any():
+            u, e1 = _polish(err, u, e1, free, 0.125, _NM_FEV * (1 + int(free.sum())))
     best = values_of(u)
     # uncertainty from the curvature of N ln E² (unit coordinates → values)
     unc, at_bound = {}, []
@@ -372,6 +378,34 @@ def _simplex(u0, step):
         v[i] = v[i] + step if v[i] + step <= 1 else v[i] - step
         s.append(v)
     return np.array(s)
+
+
+def _polish(err, u0: np.ndarray, e0: float, free: np.ndarray, step: float, maxfev: int) -> tuple[np.ndarray, float]:
+    """Nelder–Mead on the unit cube over the ``free`` coordinates from ``u0`` (error ``e0``); when it ends with a
+    coordinate on a bound it is restarted once with a fresh simplex of half the step: a simplex that collapses
+    against a bound (a factor started on its search bound by the grid) stalls there while the other coordinates
+    could still lower ``E``. Returns (u, E) — ``u0`` when nothing is better."""
+    u, e = u0.copy(), e0
+    idx = np.flatnonzero(free)
+
+    def f(x):
+        v = u0.copy()
+        v[idx] = np.clip(x, 0, 1)
+        return err(v)
+
+    for h in (step, 0.5 * step):
+        x0 = u[idx]
+        res = scipy.optimize.minimize(f, x0, method="Nelder-Mead",
+                                      options={"maxfev": maxfev, "xatol": 2e-3, "fatol": 1e-4,
+                                               "initial_simplex": _simplex(x0, h)})
+        if not res.fun < e - 1e-4:
+            break
+        u = u.copy()
+        u[idx] = np.clip(res.x, 0, 1)
+        e = float(res.fun)
+        if not np.any((u[idx] < 0.01) | (u[idx] > 0.99)):
+            break
+    return u, e
 
 
 def _fixes(pb, before, after, sel) -> pd.DataFrame:
