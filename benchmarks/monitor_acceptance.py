@@ -21,6 +21,7 @@ are tests/monitor_truth.py. Runs cost ~5 s each plus ~10 s per perturbed or shif
 uncertainty runs; the defaults (25 perturbed models, 2 uncertainty runs) take ~15 min on one core.
 
     python benchmarks/monitor_acceptance.py [--part averaging|growth|all] [--n-perturbed 25] [--uncertainty-runs 2]
+        [--loss-reference-hz F] [--fe-export-hz 2000|none] [--calibration CAL] [--work DIR [--reuse]]
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ import shutil
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -95,23 +97,34 @@ def _model_file(work: Path, fe_export_hz: float | None) -> Path:
     return model
 
 
-def _store_name(part: str, loss_reference_hz: float | None, fe_export_hz: float | None) -> str:
-    return part + ("" if loss_reference_hz is None else f"_loss_reference_{loss_reference_hz:g}Hz") + (
-        "" if fe_export_hz is None else f"_fe_{fe_export_hz:g}Hz")
+@dataclass(frozen=True)
+class Setup:
+    """What the runs are estimated with: the track model (``loss_reference_hz``: causal layers), the field model
+    (``fe_export_hz``) and a field calibration of it (``calibration``: ``railmodal field diagnose``'s folder or its
+    ``field_calibration.json``, made against that model file)."""
+
+    loss_reference_hz: float | None = None
+    fe_export_hz: float | None = 2000.0
+    calibration: str | None = None
+
+    def store_name(self, part: str) -> str:
+        return part + ("" if self.loss_reference_hz is None else f"_loss_reference_{self.loss_reference_hz:g}Hz") + (
+            "" if self.fe_export_hz is None else f"_fe_{self.fe_export_hz:g}Hz") + (
+            "" if self.calibration is None else "_calibrated")
 
 
-def _ingest(camp, work: Path, part: str, mon, reuse: bool = False, loss_reference_hz: float | None = None,
-            fe_export_hz: float | None = None):
+def _ingest(camp, work: Path, part: str, mon, setup: Setup, reuse: bool = False):
     """Every run of the campaign into the store of this part, track model and field model; returns the spec,
     the store, the ingest result and the line file the runs were estimated with."""
     from estimator.monitoring import IngestResult, IngestSpec, MonitoringStore, ingest, update_days
 
-    line_file = _line_file(camp, work, loss_reference_hz)
-    _say(_track_model(loss_reference_hz))
-    model = _model_file(work, fe_export_hz)
-    _say(f"field model: {model.name}")
-    name = _store_name(part, loss_reference_hz, fe_export_hz)
-    spec = IngestSpec(str(model), str(camp / "sensors.csv"), line=str(line_file), monitoring=mon)
+    line_file = _line_file(camp, work, setup.loss_reference_hz)
+    _say(_track_model(setup.loss_reference_hz))
+    model = _model_file(work, setup.fe_export_hz)
+    _say(f"field model: {model.name}" + ("" if setup.calibration is None else f", calibrated by {setup.calibration}"))
+    name = setup.store_name(part)
+    spec = IngestSpec(str(model), str(camp / "sensors.csv"), line=str(line_file), monitoring=mon,
+                      calibration=setup.calibration)
     store = MonitoringStore(work / name)
     t0 = time.perf_counter()
     if reuse and (work / name).is_dir():  # the runs as stored; only the days are averaged again
@@ -131,8 +144,7 @@ def _ingest(camp, work: Path, part: str, mon, reuse: bool = False, loss_referenc
     return spec, store, res, line_file
 
 
-def averaging(work: Path, mon, reuse: bool = False, loss_reference_hz: float | None = None,
-              fe_export_hz: float | None = None) -> dict:
+def averaging(work: Path, mon, setup: Setup, reuse: bool = False) -> dict:
     from lab_data.line.cache import line_campaign_dir
     from monitor_truth import truth_json, truth_windows
 
@@ -143,7 +155,7 @@ def averaging(work: Path, mon, reuse: bool = False, loss_reference_hz: float | N
 
     camp = line_campaign_dir("nominal", **AVERAGING)
     _say(f"\n=== averaging campaign {camp.name}: 1 day x 7 runs ===")
-    spec, store, res, line_file = _ingest(camp, work, "averaging", mon, reuse, loss_reference_hz, fe_export_hz)
+    spec, store, res, line_file = _ingest(camp, work, "averaging", mon, setup, reuse)
     m = monitor(store, line_file=line_file, cfg=mon)
     date = res.dates[0]
     truth = truth_windows(camp, date, mon.window_m)
@@ -212,8 +224,7 @@ def averaging(work: Path, mon, reuse: bool = False, loss_reference_hz: float | N
     return {"average": avg, "coverage": cov, "coverage_calibrated": cov_cal, "trolley": tab, "runs": res.runs}
 
 
-def growth(work: Path, mon, reuse: bool = False, loss_reference_hz: float | None = None,
-           fe_export_hz: float | None = None) -> dict:
+def growth(work: Path, mon, setup: Setup, reuse: bool = False) -> dict:
     from lab_data.line.cache import line_campaign_dir
     from monitor_truth import crossing_date, section_levels, truth_json, truth_windows
 
@@ -224,7 +235,7 @@ def growth(work: Path, mon, reuse: bool = False, loss_reference_hz: float | None
     tj = truth_json(camp)
     g = tj["grinding"]
     _say(f"\n=== growth campaign {camp.name}: 5 days x 2 runs; truth: ground {g['date']} on {g['sections_m']} ===")
-    spec, store, res, line_file = _ingest(camp, work, "growth", mon, reuse, loss_reference_hz, fe_export_hz)
+    spec, store, res, line_file = _ingest(camp, work, "growth", mon, setup, reuse)
     cfg = mon.replace(thresholds_um=FORECAST_THRESHOLDS_UM)
     m = monitor(store, line_file=line_file, cfg=cfg)
     truth = pd.concat([truth_windows(camp, d, mon.window_m) for d in res.dates], ignore_index=True)
@@ -311,23 +322,25 @@ def main(argv=None) -> int:
                     help="the field model as the lab workflow saves it from the design FE exported to this "
                          "frequency, every mode kept (default 2000); 'none': the control model of the 500 Hz "
                          "test band (tests/test_estimator_synthetic.control_model)")
+    ap.add_argument("--calibration", default=None,
+                    help="a field calibration of the field model (railmodal field diagnose's calibrated_model/ "
+                         "folder or its field_calibration.json), applied to every run at ingest")
     ap.add_argument("--work", default=None, help="work folder (default: a temporary one, removed)")
     ap.add_argument("--reuse", action="store_true", help="use the stores already in --work (days averaged again)")
     a = ap.parse_args(argv)
     logging.basicConfig(level=logging.ERROR)
     work = Path(a.work) if a.work else Path(tempfile.mkdtemp(prefix="monitor_acceptance_"))
     work.mkdir(parents=True, exist_ok=True)
+    setup = Setup(a.loss_reference_hz, a.fe_export_hz, a.calibration)
     try:
         if a.part in ("averaging", "all"):
             averaging(work, MonitoringConfig(n_perturbed=a.n_perturbed, uncertainty_runs=a.uncertainty_runs,
-                                             sensor_noise_rms_m_s2=SENSOR_NOISE_M_S2), a.reuse, a.loss_reference_hz,
-                      a.fe_export_hz)
+                                             sensor_noise_rms_m_s2=SENSOR_NOISE_M_S2), setup, a.reuse)
         if a.part in ("growth", "all"):
             growth(work, MonitoringConfig(n_perturbed=0, uncertainty_runs=a.growth_uncertainty_runs,
-                                          sensor_noise_rms_m_s2=SENSOR_NOISE_M_S2), a.reuse, a.loss_reference_hz,
-                   a.fe_export_hz)
+                                          sensor_noise_rms_m_s2=SENSOR_NOISE_M_S2), setup, a.reuse)
         parts = ("averaging", "growth") if a.part == "all" else (a.part,)
-        _say(_outliers(work, [_store_name(p, a.loss_reference_hz, a.fe_export_hz) for p in parts]))
+        _say(_outliers(work, [setup.store_name(p) for p in parts]))
     finally:
         if not a.work:
             shutil.rmtree(work, ignore_errors=True)
