@@ -25,15 +25,15 @@ state, and the catalogue is fitted again on top of it — until none passes
 
 Fit: a grid over the bounds (9 values for one parameter, 5 × 5 for two: in
 log for the factors) finds the basin, Nelder–Mead on the unit cube polishes
-it (restarted once with a fresh simplex when it ends on a bound); an effect with ``n_grid`` set grids
-only its leading parameters (a stretch's two factors) and starts the others
-at their nominal values (its ends where the evidence located it), Nelder–Mead
-then moves all of them. Uncertainty (1σ) from the curvature of ``N ln E²`` at
-the optimum (a Gaussian likelihood whose variance is estimated:
-``Δ(N ln E²) = 1`` at one σ). A parameter whose move by ± a quarter of its
-search span changes ``E`` by less than ``undetermined_de`` is
-*undetermined*: it returns to its nominal value and the other parameters are
-polished again without it. Candidates are fitted in
+it (restarted once with a fresh simplex when it ends on a bound); an effect
+with ``n_grid`` set grids only its leading parameters (a stretch's two
+factors) and starts the others at their nominal values (its ends where the
+evidence located it), Nelder–Mead then moves all of them. Uncertainty (1σ)
+from the curvature of ``N ln E²`` at the optimum (a Gaussian likelihood
+whose variance is estimated: ``Δ(N ln E²) = 1`` at one σ). A parameter whose
+move by ± a quarter of its search span changes ``E`` by less than
+``undetermined_de`` is *undetermined*: it returns to its nominal value and
+the other parameters are polished again without it. Candidates are fitted in
 worker processes (fork: the evidence is shared, nothing is pickled but the
 results).
 """
