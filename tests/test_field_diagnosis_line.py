@@ -172,7 +172,7 @@ def test_sensor_offset_on_the_virtual_line_is_found_and_accepted():
 
 def test_two_effects_on_the_virtual_line_one_after_the_other():
     """``two_effects`` (the softer trackform on 720-780 m and the offset accelerometer together): the trackform
-    stretch first (measured 720.0-784.9 m, factor 0.565), the offset on its own top of it (ACC_W1L_Z, −37 mm), each
+    stretch first (measured 720.0-784.9 m, factor 0.565), the offset on top of it (ACC_W1L_Z, −37 mm), each
     within 25 % of the truth and each lowering the validation cells' error."""
     from estimator.diagnosis import SensorOffset, TrackformStretch
     from lab_data.line.files import read_truth
