@@ -48,6 +48,8 @@ __all__ = ["WheelsetBlocks", "wheelset_blocks", "interp_transfer", "CONTACT_DOFS
 
 #: contact DOFs of the blocks, in this order (thesis DOFs 2, 3, 8, 9)
 CONTACT_DOFS = ("contact_L:y", "contact_L:z", "contact_R:y", "contact_R:z")
+#: angle/offset pairs whose wheelset side (B, its inverse) a :class:`WheelsetBlocks` keeps (a fit visits ~100)
+_INVERSE_CACHE = 64
 _AXES = {"x": np.array([1.0, 0.0, 0.0]), "y": np.array([0.0, 1.0, 0.0]), "z": np.array([0.0, 0.0, 1.0])}
 
 
@@ -90,6 +92,7 @@ class WheelsetBlocks:
     alpha: float
     window: np.ndarray = field(repr=False, default=None)
     _track_cache: dict = field(default_factory=dict, repr=False)
+    _inverse_cache: dict = field(default_factory=dict, repr=False)
 
     @property
     def df(self) -> float:
@@ -173,41 +176,70 @@ class WheelsetBlocks:
         """
         return self._assemble(trackform, theta, contact_stiffness, offsets, supports, forward=True)
 
+    def _wheelset_side(self, theta, offsets) -> tuple:
+        """``(th, NᵀA_cN, B, B⁺_α)`` for the angles and mounting offsets (memoised, at most
+        :data:`_INVERSE_CACHE` entries).
+
+        They hold the wheelset and its sensors only — neither the track nor the contact stiffness — so every
+        trackform, wheel load or support model met in a fit reuses them; only ``D = NᵀA_cN + NᵀA_R N + 1/K_H``
+        is assembled per call (the Tikhonov inverse of ``B`` does not depend on ``D``:
+        :func:`estimator.inversion.regularised_inverse` returns ``D B⁺_α``). The half model's are per side
+        (``(n_f, n_sides)`` each: its sides are inverted one by one).
+        """
+        th = (0.0, 0.0) if self.kind in ("vertical", "half") else (round(theta[0], 5), round(theta[1], 5))
+        off = None if offsets is None or not np.any(offsets) else np.asarray(offsets, float)
+        key = (th, None if off is None else off.tobytes())
+        got = self._inverse_cache.get(key)
+        if got is not None:
+            return got
+        A_B = self.sensor_rows(off)
+        Om2 = (2 * np.pi * self.f) ** 2
+        if self.kind == "half":
+            z = [1 if s == "L" else 3 for s in self.sides]
+            B = np.stack([-Om2 * A_B[:, i, zi] for i, zi in enumerate(z)], axis=1)
+            pinv = np.stack([regularised_inverse(np.ones((self.f.size, 1, 1)), B[:, i, None, None], self.f,
+                                                 self.alpha, with_inverse=True)[3][:, 0, 0]
+                             for i in range(len(z))], axis=1)
+            NAN = np.stack([self.A_c[:, zi, zi] for zi in z], axis=1)
+        else:
+            sl, cl, sr, cr = math.sin(th[0]), math.cos(th[0]), math.sin(th[1]), math.cos(th[1])
+            N = np.array([[-sl, 0.0], [cl, 0.0], [0.0, -sr], [0.0, cr]])
+            NAN = N.T @ self.A_c @ N
+            B = -Om2[:, None, None] * (A_B @ N)
+            pinv = regularised_inverse(np.broadcast_to(np.eye(2), (self.f.size, 2, 2)), B, self.f, self.alpha,
+                                       with_inverse=True)[3]
+        if len(self._inverse_cache) >= _INVERSE_CACHE:
+            del self._inverse_cache[next(iter(self._inverse_cache))]
+        got = self._inverse_cache[key] = (th, NAN, B, pinv)
+        return got
+
     def _assemble(self, trackform, theta, contact_stiffness, offsets, supports, *, forward: bool,
                   forces: bool = False):
         ary, arz = self.rail(trackform, supports)
-        A_B = self.sensor_rows(offsets)
-        Om2 = (2 * np.pi * self.f) ** 2
         c = 1.0 / float(contact_stiffness)
+        th, NAN, B, pinv = self._wheelset_side(theta, offsets)
         if self.kind == "half":
-            n_f = self.f.size
-            T = np.zeros((n_f, len(self.sides), len(self.sides)), complex)
-            P = np.zeros_like(T)
-            for i, s in enumerate(self.sides):
-                z = 1 if s == "L" else 3
-                D = (self.A_c[:, z, z] + arz + c)[:, None, None]
-                B = (-Om2 * A_B[:, i, z])[:, None, None]
-                if forward:
-                    T[:, i, i] = B[:, 0, 0] / D[:, 0, 0]
-                    continue
-                Ti, _, _, Pi = regularised_inverse(D, B, self.f, self.alpha, with_inverse=True)
-                T[:, i, i] = Ti[:, 0, 0]
-                P[:, i, i] = Pi[:, 0, 0]
+            n = len(self.sides)
+            D = NAN + arz[:, None] + c  # (n_f, n_sides): each side's own vertical contact
+            T = np.zeros((self.f.size, n, n), complex)
+            idx = np.arange(n)
+            if forward:
+                T[:, idx, idx] = B / D
+                return T
+            T[:, idx, idx] = D * pinv
+            if forces:
+                P = np.zeros_like(T)
+                P[:, idx, idx] = pinv
         else:
-            th = (0.0, 0.0) if self.kind == "vertical" else (round(theta[0], 5), round(theta[1], 5))
-            sl, cl, sr, cr = math.sin(th[0]), math.cos(th[0]), math.sin(th[1]), math.cos(th[1])
-            N = np.array([[-sl, 0.0], [cl, 0.0], [0.0, -sr], [0.0, cr]])
-            lateral = th[0] != 0.0 or th[1] != 0.0
-            rail = np.stack([ary if lateral else np.zeros_like(ary), arz, ary if lateral else np.zeros_like(ary),
-                             arz], axis=1)
-            A = self.A_c + rail[:, :, None] * np.eye(4)[None]
-            D = N.T @ A @ N + c * np.eye(2)[None]
-            B = -Om2[:, None, None] * (A_B @ N)
+            # Nᵀ diag(A_RY, A_RZ, A_RY, A_RZ) N is diagonal: each contact normal sees the rail along itself
+            s2l, c2l, s2r, c2r = math.sin(th[0]) ** 2, math.cos(th[0]) ** 2, math.sin(th[1]) ** 2, math.cos(th[1]) ** 2
+            D = NAN.copy()
+            D[:, 0, 0] += (s2l * ary if s2l else 0.0) + c2l * arz + c
+            D[:, 1, 1] += (s2r * ary if s2r else 0.0) + c2r * arz + c
             if forward:
                 return B @ np.linalg.inv(D)
-            T, _, _, P = regularised_inverse(D, B, self.f, self.alpha, with_inverse=True)
-        if forward:
-            return T
+            T = D @ pinv
+            P = pinv
         if forces:
             return T * self.window[:, None, None], P * self.window[:, None, None]
         return T * self.window[:, None, None]

@@ -215,7 +215,7 @@ def read_trolley(path) -> pd.DataFrame:
     if need:
         raise RunFileError(f"{p}: trolley file lacks column(s) {need} (chainage_m, rail, roughness_um)")
     df["rail"] = df["rail"].astype(str).str.upper()
-    bad = sorted(set(df["rail"]) - {"L", "R"})
+    bad = sorted(set(df["rail"].unique()) - {"L", "R"})
     if bad:
         raise RunFileError(f"{p}: rail must be L or R, got {bad}")
     out = pd.DataFrame({"chainage_m": pd.to_numeric(df["chainage_m"], errors="coerce"), "rail": df["rail"],
