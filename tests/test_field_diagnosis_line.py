@@ -25,6 +25,8 @@ import math
 import numpy as np
 import pytest
 
+from curving_truth import assert_everyday_curve_angles, curving_law
+
 pytestmark = pytest.mark.slow
 
 
@@ -60,44 +62,6 @@ def _diagnose(scenario: str, validation_stretches=(), **config):
                               estimator_config=EstimatorConfig(wheelbase_m=2.1),
                               validation_stretches=validation_stretches)
     return d, res
-
-
-def _curving_law(d) -> tuple[float, float]:
-    """The line's own contact angles (γ_L, γ_R) [rad] of the leading wheelset on curve C1's body at the calibration
-    day's speed there (:func:`lab_data.line.curving.rail_contact_angles`, the scenario's curving parameters)."""
-    import pandas as pd
-
-    from lab_data.line.curving import CurvingParameters, rail_contact_angles
-    from lab_data.line.files import read_truth
-    from lab_data.line.geometry import default_line
-
-    truth = read_truth(d)
-    body = []  # the true speed over the curve's body (510-670 m) in the calibration day's runs
-    for r in truth["runs"]:
-        if r["day"] == 1:
-            tr = pd.read_parquet(f"{d}/truth/runs/{r['run_id']}.parquet")
-            body.append(tr["speed_m_s"][(tr["chainage_m"] > 510) & (tr["chainage_m"] < 670)].abs().to_numpy())
-    speed = float(np.median(np.concatenate(body)))
-    cp = CurvingParameters(**{k: v for k, v in truth["curving"].items() if k in CurvingParameters.__dataclass_fields__})
-    g_l, g_r = rail_contact_angles(default_line(), np.array([590.0]), np.array([speed]), np.array([True]), cp)
-    return float(g_l[0]), float(g_r[0])
-
-
-def _assert_everyday_curve_angles(d, candidate) -> None:
-    """``candidate`` is curve C1's leading-wheelset contact angle, and its fit lies closer to the line's own curving
-    law than the estimator's first-order default (:mod:`estimator.contact_angles`: the pure-rolling shift of
-    5.1 mm on R = 400 m stays on the tread, 1.43° on both wheels; the bogie's yaw pushes the leading wheelset
-    further out, which that default leaves to this effect), on both rails."""
-    from estimator.contact_angles import CurvingModel
-    from estimator.diagnosis import ContactAngle
-
-    assert isinstance(candidate.effect, ContactAngle), candidate.effect
-    assert candidate.effect.curve == "C1" and candidate.effect.role == "leading"
-    law = dict(zip("LR", _curving_law(d)))
-    default = CurvingModel().tread_angle_rad
-    for rail in "LR":
-        assert abs(candidate.params[f"gamma_{rail}"] - law[rail]) < abs(default - law[rail]), (rail, candidate.params,
-                                                                                               law)
 
 
 def _index_error(res, part: str, stage: str) -> float:
@@ -142,7 +106,7 @@ def test_contact_angle_on_the_virtual_line():
     d, res = _diagnose("contact_angle", effects=("contact_angle", "contact_stiffness"), max_effects=1)
     first = res.diagnosis.rounds[0][0]
     assert isinstance(first.effect, ContactAngle) and first.effect.curve == "C1" and first.effect.role == "leading"
-    g_l, g_r = _curving_law(d)
+    g_l, g_r = curving_law(d)
     assert abs(first.params["gamma_L"] / g_l - 1) < 0.25
     assert abs(first.params["gamma_R"] - g_r) < math.radians(1.0)
     assert res.diagnosis.accepted and res.diagnosis.accepted[0].effect == first.effect
@@ -167,7 +131,7 @@ def test_sensor_offset_on_the_virtual_line_is_found_and_accepted():
     others = [a for a in res.diagnosis.accepted if a is not c]
     assert len(others) <= 1
     for a in others:
-        _assert_everyday_curve_angles(d, a)
+        assert_everyday_curve_angles(d, a)
 
 
 def test_two_effects_on_the_virtual_line_one_after_the_other():
@@ -190,7 +154,7 @@ def test_two_effects_on_the_virtual_line_one_after_the_other():
     assert abs(acc[1].params["dy"] / offset[1] - 1) < 0.25
     assert all(c.validation_after < c.validation_before for c in acc[:2])
     for a in acc[2:]:
-        _assert_everyday_curve_angles(d, a)
+        assert_everyday_curve_angles(d, a)
 
 
 def test_nominal_on_the_virtual_line_accepts_only_the_everyday_curve_angles():
@@ -202,7 +166,7 @@ def test_nominal_on_the_virtual_line_accepts_only_the_everyday_curve_angles():
     d, res = _diagnose("nominal")
     diag = res.diagnosis
     assert len(diag.accepted) == 1, diag.verdict
-    _assert_everyday_curve_angles(d, diag.accepted[0])
+    assert_everyday_curve_angles(d, diag.accepted[0])
     assert diag.accepted[0].validation_after < diag.accepted[0].validation_before
     e = diag.errors.query("stage == 'nominal' and set == 'calibration'")["error_db"].iloc[0]
     assert e <= 2.0
@@ -229,7 +193,7 @@ def test_reversed_lateral_accelerometer_is_not_forced_and_is_located():
     d, res = _diagnose("lateral_sign", effects=("sensor_offset", "contact_angle", "contact_stiffness"))
     flipped = read_truth(d)["scenario"]["sign_flips"]
     for a in res.diagnosis.accepted:  # nothing but the line's everyday curve angles (``nominal`` test)
-        _assert_everyday_curve_angles(d, a)
+        assert_everyday_curve_angles(d, a)
     bad = res.channel_check
     assert list(bad["channel"]) == flipped and list(bad["reversal_explains"]) == flipped
     assert float(bad["share_negative"].iloc[0]) >= 0.9 and float(bad["median_rho"].iloc[0]) < -0.3
