@@ -144,7 +144,9 @@ def _ingest(camp, work: Path, part: str, mon, setup: Setup, reuse: bool = False)
     return spec, store, res, line_file
 
 
-def averaging(work: Path, mon, setup: Setup, reuse: bool = False) -> dict:
+def averaging(work: Path, mon, setup: Setup, reuse: bool = False, section: tuple[float, float] = SECTION) -> dict:
+    """The averaging campaign over ``section`` (default the corrugated curve's; a straight at cruise speed gives
+    the 300-1000 mm band, resolved only above 10 m/s, windows enough to measure its coverage)."""
     from lab_data.line.cache import line_campaign_dir
     from monitor_truth import truth_json, truth_windows
 
@@ -153,16 +155,17 @@ def averaging(work: Path, mon, setup: Setup, reuse: bool = False) -> dict:
     from estimator.monitoring.averaging import energy_mean_db, level_db, run_values
     from estimator.monitoring.confidence import coverage_table
 
-    camp = line_campaign_dir("nominal", **AVERAGING)
-    _say(f"\n=== averaging campaign {camp.name}: 1 day x 7 runs ===")
-    spec, store, res, line_file = _ingest(camp, work, "averaging", mon, setup, reuse)
+    camp = line_campaign_dir("nominal", **{**AVERAGING, "section": section})
+    _say(f"\n=== averaging campaign {camp.name}: 1 day x 7 runs over {section[0]:g}-{section[1]:g} m ===")
+    spec, store, res, line_file = _ingest(camp, work, _averaging_part(section), mon, setup, reuse)
     m = monitor(store, line_file=line_file, cfg=mon)
     date = res.dates[0]
     truth = truth_windows(camp, date, mon.window_m)
     # --- single runs vs the day average on the corrugated patch, per rail and band
     rv = run_values(m.windows)
     rows = []
-    for rail in ("L", "R"):
+    patch_inside = section[0] <= PATCH_BODY[0] and PATCH_BODY[1] <= section[1]
+    for rail in ("L", "R") if patch_inside else ():
         for band in BANDS[:2]:
             t = truth[(truth["rail"] == rail) & (truth["band_mm"] == band)
                       & truth["window_m"].between(PATCH_BODY[0], PATCH_BODY[1] - 1)]
@@ -179,9 +182,10 @@ def averaging(work: Path, mon, setup: Setup, reuse: bool = False) -> dict:
                          "single_errors_db": " ".join(f"{e:+.2f}" for e in single),
                          "single_max_abs_db": float(np.max(np.abs(single))) if single else np.nan})
     avg = pd.DataFrame(rows)
-    _say(f"\nband pk-pk over the corrugated patch {PATCH_BODY[0]:g}-{PATCH_BODY[1]:g} m: day average vs single runs "
-         f"(error = estimate - truth, dB; acceptance |average| <= {TOL_AVERAGE_DB} dB on rail R)")
-    _say(avg.to_string(index=False, float_format=lambda v: f"{v:.2f}"))
+    if patch_inside:
+        _say(f"\nband pk-pk over the corrugated patch {PATCH_BODY[0]:g}-{PATCH_BODY[1]:g} m: day average vs single runs "
+             f"(error = estimate - truth, dB; acceptance |average| <= {TOL_AVERAGE_DB} dB on rail R)")
+        _say(avg.to_string(index=False, float_format=lambda v: f"{v:.2f}"))
     # --- coverage of the truth by the 95 % intervals, per band
     cov = coverage_table(m.day_windows, truth)
     _say("\n95 % interval coverage of the truth per band (1 m windows, both rails; acceptance >= 0.90):")
@@ -198,7 +202,7 @@ def averaging(work: Path, mon, setup: Setup, reuse: bool = False) -> dict:
     held, cals = [], []
     for band, wb in comp.windows.groupby("band_mm"):
         mid = float(np.median(wb["window_m"]))
-        for site in ((SECTION[0], mid), (mid, SECTION[1])):
+        for site in ((section[0], mid), (mid, section[1])):
             cal = reference_calibration(wb, site=site, confidence=mon.confidence)
             cals.append(cal)
             dw = with_reference(m.day_windows[m.day_windows["band_mm"] == band], cal)
@@ -210,7 +214,8 @@ def averaging(work: Path, mon, setup: Setup, reuse: bool = False) -> dict:
     _say("\n95 % interval coverage with the reference source, each half calibrated by the other half's trolley "
          "(windows the calibration did not see; acceptance >= 0.90):")
     _say(cov_cal.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
-    _say(f"\ntrolley {trolley.name}: aligned shift {comp.alignment.fit.shift(np.array([600.0]))[0]:+.4f} m at 600 m "
+    mid_m = 0.5 * (section[0] + section[1])
+    _say(f"\ntrolley {trolley.name}: aligned shift {comp.alignment.fit.shift(np.array([mid_m]))[0]:+.4f} m at {mid_m:g} m "
          f"(truth: {-tj['trolley']['offset_m']:+.4f} m), residual {comp.alignment.residual_mm:.1f} mm")
     tw = truth.assign(valid_share=1.0)
     from estimator.monitoring.reference import band_errors
@@ -222,6 +227,10 @@ def averaging(work: Path, mon, setup: Setup, reuse: bool = False) -> dict:
     _say("band errors per rail, train day average vs trolley (and vs the truth itself):")
     _say(tab.to_string(index=False, float_format=lambda v: f"{v:.2f}"))
     return {"average": avg, "coverage": cov, "coverage_calibrated": cov_cal, "trolley": tab, "runs": res.runs}
+
+
+def _averaging_part(section: tuple[float, float]) -> str:
+    return "averaging" if tuple(section) == SECTION else f"averaging_{section[0]:g}-{section[1]:g}m"
 
 
 def growth(work: Path, mon, setup: Setup, reuse: bool = False) -> dict:
@@ -325,6 +334,9 @@ def main(argv=None) -> int:
     ap.add_argument("--calibration", default=None,
                     help="a field calibration of the field model (railmodal field diagnose's calibrated_model/ "
                          "folder or its field_calibration.json), applied to every run at ingest")
+    ap.add_argument("--averaging-section", type=float, nargs=2, default=SECTION, metavar=("FROM", "TO"),
+                    help="the averaging campaign's section [m] (default 400 800, the corrugated curve; e.g. 1260 "
+                         "1640, straight_4 at cruise speed, measures the 300-1000 mm band's coverage)")
     ap.add_argument("--work", default=None, help="work folder (default: a temporary one, removed)")
     ap.add_argument("--reuse", action="store_true", help="use the stores already in --work (days averaged again)")
     a = ap.parse_args(argv)
@@ -335,11 +347,13 @@ def main(argv=None) -> int:
     try:
         if a.part in ("averaging", "all"):
             averaging(work, MonitoringConfig(n_perturbed=a.n_perturbed, uncertainty_runs=a.uncertainty_runs,
-                                             sensor_noise_rms_m_s2=SENSOR_NOISE_M_S2), setup, a.reuse)
+                                             sensor_noise_rms_m_s2=SENSOR_NOISE_M_S2), setup, a.reuse,
+                      tuple(a.averaging_section))
         if a.part in ("growth", "all"):
             growth(work, MonitoringConfig(n_perturbed=0, uncertainty_runs=a.growth_uncertainty_runs,
                                           sensor_noise_rms_m_s2=SENSOR_NOISE_M_S2), setup, a.reuse)
-        parts = ("averaging", "growth") if a.part == "all" else (a.part,)
+        avg_part = _averaging_part(tuple(a.averaging_section))
+        parts = (avg_part, "growth") if a.part == "all" else (avg_part if a.part == "averaging" else a.part,)
         _say(_outliers(work, [setup.store_name(p) for p in parts]))
     finally:
         if not a.work:
