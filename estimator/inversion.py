@@ -71,7 +71,8 @@ from estimator.errors import ChannelError, ConfigurationError
 from receptance.dofs import Point
 from receptance.transfer import full_vertical_transfer, half_wheelset_transfer, vertical_lateral_transfer
 
-__all__ = ["WheelsetTransfer", "sensor_model", "model_channels", "regularised_inverse", "band_window",
+__all__ = ["WheelsetTransfer", "sensor_model", "model_channels", "regularised_inverse", "tikhonov_inverse",
+           "band_window",
            "wheelset_transfer", "TimeIrregularity", "invert", "cubic_sample", "sample_many", "UPSAMPLE",
            "condition_by_band", "rail_coupling"]
 
@@ -160,26 +161,25 @@ def _log_smooth_rms(f: np.ndarray, v: np.ndarray, half_octaves: float = 1 / 6) -
     return np.sqrt((c[hi] - c[lo]) / n)
 
 
-def regularised_inverse(D: np.ndarray, B: np.ndarray, f: np.ndarray, alpha: float, *, with_inverse: bool = False
-                        ) -> tuple[np.ndarray, ...]:
-    """``T = D B⁺_α`` with the Tikhonov reference smoothed over a third of an octave (module docstring).
+def tikhonov_inverse(B: np.ndarray, f: np.ndarray, alpha: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``B⁺_α``, the Tikhonov-regularised pseudo-inverse of ``B`` with its reference smoothed over a third of an
+    octave (module docstring); it holds the wheelset and sensors only, so :func:`regularised_inverse`'s ``T``
+    for any ``D`` is ``D B⁺_α``.
 
     Parameters
     ----------
-    D : ndarray (n_f, k, k)
     B : ndarray (n_f, m, k)
     f : ndarray (n_f,) evenly spaced [Hz]
     alpha : float
 
     Returns
     -------
-    T : ndarray (n_f, k, m)
+    pinv : ndarray (n_f, k, m)
+        ``B⁺_α``, the contact forces per unit acceleration (0 where not finite).
     condition : ndarray (n_f,)
         ``s_max/s_min`` of ``B``.
     filter_min : ndarray (n_f,)
         Smallest Tikhonov filter factor (1 = untouched).
-    pinv : ndarray (n_f, k, m)
-        Only with ``with_inverse``: ``B⁺_α``, the contact forces per unit acceleration.
     """
     k = B.shape[2]
     Bh = np.conj(np.swapaxes(B, 1, 2))
@@ -212,10 +212,34 @@ def regularised_inverse(D: np.ndarray, B: np.ndarray, f: np.ndarray, alpha: floa
         ev_min = np.maximum(ev[:, -1], 0.0)
         cond = np.sqrt(ev[:, 0] / ev_min)
         factor = ev_min / (ev_min + lam2)
-    pinv = np.where(np.isfinite(pinv), pinv, 0.0)
+    return np.where(np.isfinite(pinv), pinv, 0.0), cond, np.nan_to_num(factor, nan=0.0)
+
+
+def regularised_inverse(D: np.ndarray, B: np.ndarray, f: np.ndarray, alpha: float, *, with_inverse: bool = False
+                        ) -> tuple[np.ndarray, ...]:
+    """``T = D B⁺_α`` with the Tikhonov reference smoothed over a third of an octave (module docstring).
+
+    Parameters
+    ----------
+    D : ndarray (n_f, k, k)
+    B : ndarray (n_f, m, k)
+    f : ndarray (n_f,) evenly spaced [Hz]
+    alpha : float
+
+    Returns
+    -------
+    T : ndarray (n_f, k, m)
+    condition : ndarray (n_f,)
+        ``s_max/s_min`` of ``B``.
+    filter_min : ndarray (n_f,)
+        Smallest Tikhonov filter factor (1 = untouched).
+    pinv : ndarray (n_f, k, m)
+        Only with ``with_inverse``: ``B⁺_α`` (:func:`tikhonov_inverse`), the contact forces per unit acceleration.
+    """
+    pinv, cond, factor = tikhonov_inverse(B, f, alpha)
     if with_inverse:
-        return D @ pinv, cond, np.nan_to_num(factor, nan=0.0), pinv
-    return D @ pinv, cond, np.nan_to_num(factor, nan=0.0)
+        return D @ pinv, cond, factor, pinv
+    return D @ pinv, cond, factor
 
 
 def band_window(f: np.ndarray, f_lo: float, f_hi: float, f_nyq: float) -> np.ndarray:

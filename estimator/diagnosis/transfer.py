@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from estimator.inversion import band_window, model_channels, rail_coupling, regularised_inverse, sensor_model
+from estimator.inversion import band_window, model_channels, rail_coupling, sensor_model, tikhonov_inverse
 from receptance.track import track_frf
 
 __all__ = ["WheelsetBlocks", "wheelset_blocks", "interp_transfer", "CONTACT_DOFS"]
@@ -182,8 +182,8 @@ class WheelsetBlocks:
 
         They hold the wheelset and its sensors only — neither the track nor the contact stiffness — so every
         trackform, wheel load or support model met in a fit reuses them; only ``D = NᵀA_cN + NᵀA_R N + 1/K_H``
-        is assembled per call (the Tikhonov inverse of ``B`` does not depend on ``D``:
-        :func:`estimator.inversion.regularised_inverse` returns ``D B⁺_α``). The half model's are per side
+        is assembled per call (the Tikhonov inverse of ``B``, :func:`estimator.inversion.tikhonov_inverse`, does not
+        depend on ``D``: the estimator's ``T`` is ``D B⁺_α``). The half model's are per side
         (``(n_f, n_sides)`` each: its sides are inverted one by one).
         """
         th = (0.0, 0.0) if self.kind in ("vertical", "half") else (round(theta[0], 5), round(theta[1], 5))
@@ -197,30 +197,28 @@ class WheelsetBlocks:
         if self.kind == "half":
             z = [1 if s == "L" else 3 for s in self.sides]
             B = np.stack([-Om2 * A_B[:, i, zi] for i, zi in enumerate(z)], axis=1)
-            pinv = np.stack([regularised_inverse(np.ones((self.f.size, 1, 1)), B[:, i, None, None], self.f,
-                                                 self.alpha, with_inverse=True)[3][:, 0, 0]
+            pinv = np.stack([tikhonov_inverse(B[:, i, None, None], self.f, self.alpha)[0][:, 0, 0]
                              for i in range(len(z))], axis=1)
-            NAN = np.stack([self.A_c[:, zi, zi] for zi in z], axis=1)
+            NtAN = np.stack([self.A_c[:, zi, zi] for zi in z], axis=1)
         else:
             sl, cl, sr, cr = math.sin(th[0]), math.cos(th[0]), math.sin(th[1]), math.cos(th[1])
             N = np.array([[-sl, 0.0], [cl, 0.0], [0.0, -sr], [0.0, cr]])
-            NAN = N.T @ self.A_c @ N
+            NtAN = N.T @ self.A_c @ N
             B = -Om2[:, None, None] * (A_B @ N)
-            pinv = regularised_inverse(np.broadcast_to(np.eye(2), (self.f.size, 2, 2)), B, self.f, self.alpha,
-                                       with_inverse=True)[3]
+            pinv = tikhonov_inverse(B, self.f, self.alpha)[0]
         if len(self._inverse_cache) >= _INVERSE_CACHE:
             del self._inverse_cache[next(iter(self._inverse_cache))]
-        got = self._inverse_cache[key] = (th, NAN, B, pinv)
+        got = self._inverse_cache[key] = (th, NtAN, B, pinv)
         return got
 
     def _assemble(self, trackform, theta, contact_stiffness, offsets, supports, *, forward: bool,
                   forces: bool = False):
         ary, arz = self.rail(trackform, supports)
         c = 1.0 / float(contact_stiffness)
-        th, NAN, B, pinv = self._wheelset_side(theta, offsets)
+        th, NtAN, B, pinv = self._wheelset_side(theta, offsets)
         if self.kind == "half":
             n = len(self.sides)
-            D = NAN + arz[:, None] + c  # (n_f, n_sides): each side's own vertical contact
+            D = NtAN + arz[:, None] + c  # (n_f, n_sides): each side's own vertical contact
             T = np.zeros((self.f.size, n, n), complex)
             idx = np.arange(n)
             if forward:
@@ -233,7 +231,7 @@ class WheelsetBlocks:
         else:
             # Nᵀ diag(A_RY, A_RZ, A_RY, A_RZ) N is diagonal: each contact normal sees the rail along itself
             s2l, c2l, s2r, c2r = math.sin(th[0]) ** 2, math.cos(th[0]) ** 2, math.sin(th[1]) ** 2, math.cos(th[1]) ** 2
-            D = NAN.copy()
+            D = NtAN.copy()
             D[:, 0, 0] += (s2l * ary if s2l else 0.0) + c2l * arz + c
             D[:, 1, 1] += (s2r * ary if s2r else 0.0) + c2r * arz + c
             if forward:
