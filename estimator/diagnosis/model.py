@@ -24,7 +24,7 @@ import numpy as np
 from estimator.contact_filter import contact_gain
 from estimator.diagnosis.evidence import Evidence
 from estimator.diagnosis.state import FieldState
-from estimator.diagnosis.transfer import interp_transfer
+from estimator.diagnosis.transfer import interp_apply, interp_weights
 
 __all__ = ["Evaluator", "MIN_LEVEL_SHARE"]
 
@@ -168,13 +168,14 @@ class Evaluator:
             for k, b in enumerate(seg.bands):
                 W[(seg.f >= seg.speed_m_s / bt[b, 2]) & (seg.f < seg.speed_m_s / bt[b, 1]), k] = df
             used = np.flatnonzero(W.any(axis=1))
-            self._memo[key] = (used, W[used])
-        used, W = self._memo[key]
+            # the segment's spectra on those lines and where they fall on the blocks' grid, kept with them
+            self._memo[key] = (used, W[used], seg.S[used], interp_weights(bl.df, bl.f.size, seg.f[used]))
+        used, W, S, at = self._memo[key]
         parts = self.pieces(state, seg)
         psd = 0.0
         for share, x in parts:
-            T = interp_transfer(self.transfer(state, seg, x), bl.df, seg.f[used])
-            psd = psd + share * np.sum((T @ seg.S[used]) * np.conj(T), axis=-1).real  # diag(T S Tᴴ), (n_f, sides)
+            T = interp_apply(self.transfer(state, seg, x), at)
+            psd = psd + share * np.sum((T @ S) * np.conj(T), axis=-1).real  # diag(T S Tᴴ), (n_f, sides)
         if self.contact_filter:
             a = round(self.semi_axis(state), 9)
             gkey = ("gain", si, a)

@@ -44,7 +44,7 @@ import pandas as pd
 from estimator.inversion import band_window, model_channels, rail_coupling, sensor_model, tikhonov_inverse
 from receptance.track import track_frf
 
-__all__ = ["WheelsetBlocks", "wheelset_blocks", "interp_transfer", "CONTACT_DOFS"]
+__all__ = ["WheelsetBlocks", "wheelset_blocks", "interp_transfer", "interp_weights", "interp_apply", "CONTACT_DOFS"]
 
 #: contact DOFs of the blocks, in this order (thesis DOFs 2, 3, 8, 9)
 CONTACT_DOFS = ("contact_L:y", "contact_L:z", "contact_R:y", "contact_R:z")
@@ -277,12 +277,22 @@ def wheelset_blocks(model, channels: pd.DataFrame, kind: str, fs: float, *, f_lo
                           alpha=float(alpha), window=band_window(f, f_lo, f_hi, 0.5 * fs))
 
 
+def interp_weights(df: float, n: int, freqs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(index, weight, outside)`` of linear interpolation on ``df·(1..n)`` at ``freqs`` (:func:`interp_transfer`;
+    a caller that interpolates many functions at the same frequencies keeps them)."""
+    pos = np.asarray(freqs, float) / df - 1.0
+    i = np.clip(np.floor(pos).astype(np.int64), 0, n - 2)
+    return i, (pos - i)[:, None, None], (pos < 0) | (pos > n - 1)
+
+
+def interp_apply(T: np.ndarray, weights: tuple[np.ndarray, np.ndarray, np.ndarray]) -> np.ndarray:
+    """``T`` interpolated with :func:`interp_weights` (0 outside the grid)."""
+    i, w, outside = weights
+    out = T[i] * (1 - w) + T[i + 1] * w
+    out[outside] = 0.0
+    return out
+
+
 def interp_transfer(T: np.ndarray, df: float, freqs: np.ndarray) -> np.ndarray:
     """``T`` on ``df·(1..n)`` linearly interpolated at ``freqs`` (0 outside the grid)."""
-    pos = np.asarray(freqs, float) / df - 1.0
-    n = T.shape[0]
-    i = np.clip(np.floor(pos).astype(np.int64), 0, n - 2)
-    w = (pos - i)[:, None, None]
-    out = T[i] * (1 - w) + T[i + 1] * w
-    out[(pos < 0) | (pos > n - 1)] = 0.0
-    return out
+    return interp_apply(T, interp_weights(df, T.shape[0], freqs))
