@@ -127,12 +127,12 @@ class WheelsetBlocks:
         A_B = self.sensor_rows(offsets)
         Om2 = (2 * np.pi * self.f) ** 2
         if self.kind == "half":
-            z = [1 if s == "L" else 3 for s in self.sides]
-            return -Om2[:, None, None] * A_B[:, :, z]
-        th = (0.0, 0.0) if self.kind == "vertical" else theta
-        sl, cl, sr, cr = math.sin(th[0]), math.cos(th[0]), math.sin(th[1]), math.cos(th[1])
-        N = np.array([[-sl, 0.0], [cl, 0.0], [0.0, -sr], [0.0, cr]])
-        return -Om2[:, None, None] * (A_B @ N)
+            return -Om2[:, None, None] * A_B[:, :, self._vertical_dofs()]
+        return -Om2[:, None, None] * (A_B @ _normals((0.0, 0.0) if self.kind == "vertical" else theta))
+
+    def _vertical_dofs(self) -> list[int]:
+        """Each side's vertical contact DOF (its index in :data:`CONTACT_DOFS`): the half model's force."""
+        return [1 if s == "L" else 3 for s in self.sides]
 
     def transfer(self, trackform, theta: tuple[float, float] = (0.0, 0.0), contact_stiffness: float = 1e9, *,
                  offsets: np.ndarray | None = None, supports: str = "continuous") -> np.ndarray:
@@ -192,19 +192,17 @@ class WheelsetBlocks:
         got = self._inverse_cache.get(key)
         if got is not None:
             return got
-        A_B = self.sensor_rows(off)
-        Om2 = (2 * np.pi * self.f) ** 2
+        F = self.force_to_acceleration(th, off)
         if self.kind == "half":
-            z = [1 if s == "L" else 3 for s in self.sides]
-            B = np.stack([-Om2 * A_B[:, i, zi] for i, zi in enumerate(z)], axis=1)
+            z = self._vertical_dofs()
+            B = np.stack([F[:, i, i] for i in range(len(z))], axis=1)  # each side's channel from its own force
             pinv = np.stack([tikhonov_inverse(B[:, i, None, None], self.f, self.alpha)[0][:, 0, 0]
                              for i in range(len(z))], axis=1)
             NtAN = np.stack([self.A_c[:, zi, zi] for zi in z], axis=1)
         else:
-            sl, cl, sr, cr = math.sin(th[0]), math.cos(th[0]), math.sin(th[1]), math.cos(th[1])
-            N = np.array([[-sl, 0.0], [cl, 0.0], [0.0, -sr], [0.0, cr]])
+            N = _normals(th)
             NtAN = N.T @ self.A_c @ N
-            B = -Om2[:, None, None] * (A_B @ N)
+            B = F
             pinv = tikhonov_inverse(B, self.f, self.alpha)[0]
         if len(self._inverse_cache) >= _INVERSE_CACHE:
             del self._inverse_cache[next(iter(self._inverse_cache))]
@@ -241,6 +239,12 @@ class WheelsetBlocks:
         if forces:
             return T * self.window[:, None, None], P * self.window[:, None, None]
         return T * self.window[:, None, None]
+
+
+def _normals(theta: tuple[float, float]) -> np.ndarray:
+    """``N`` (4, 2): the contact normals at the angles ``θ_L, θ_R`` over :data:`CONTACT_DOFS`."""
+    sl, cl, sr, cr = math.sin(theta[0]), math.cos(theta[0]), math.sin(theta[1]), math.cos(theta[1])
+    return np.array([[-sl, 0.0], [cl, 0.0], [0.0, -sr], [0.0, cr]])
 
 
 def wheelset_blocks(model, channels: pd.DataFrame, kind: str, fs: float, *, f_lo: float, f_hi: float, alpha: float,
