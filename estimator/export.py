@@ -14,7 +14,7 @@ Files written into a folder (the CLI stages them: temporary folder, then rename)
 ``qc.csv``, ``odometry.csv`` quality-control findings, balise resets
 ``conditioning.csv``        condition number and regularisation per band, wheelset, model
 ``comparison.csv``          (with a reference) band errors per wheelset, model, rail
-``summary.json``            run, options, wheelbase, circumferences, masked share, timings, history
+``summary.json``            run, options, wheelbase, circumferences, sleeper passing removed, masked share, timings, history
 ``figures/*.png``           the report's figures
 ``report.html``             the report (:mod:`estimator.report`)
 =========================  ======================================================================
@@ -45,6 +45,11 @@ def summary(e: FieldEstimate) -> dict:
         "wheelbase_source": e.wheelbase_source,
         "circumference": {str(w): {"circumference_m": c.circumference_m, "radius_m": c.radius_m,
                                    "significance": c.significance} for w, c in e.circumference.items()},
+        "sleeper_passing": [{"wheelset": w, "model": m, "spacing_m": p.sleeper.spacing_m, "bays": p.sleeper.bays,
+                             "removed": [{"rail": r.rail, "order": int(r.order), "wavelength_m": r.wavelength_m,
+                                          "amplitude_m": r.amplitude_m, "floor_m": r.floor_m}
+                                         for r in p.sleeper.orders[p.sleeper.orders["significant"]].itertuples()]}
+                            for (w, m), p in e.profiles.items() if p.sleeper is not None],
         "models": list(e.models), "skipped": list(e.skipped), "stretches": [list(s) for s in e.stretches],
         "config": {k: (v if isinstance(v, (int, float, str, bool, type(None), list, dict)) else str(v))
                    for k, v in e.config.items()},

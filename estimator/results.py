@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 
 from estimator.standards.en13231 import BandIndexes
+from estimator.sleepers import SleeperPassing
 from estimator.wheel import WheelRoughness
 
 __all__ = ["ProfileEstimate", "FieldEstimate"]
@@ -34,7 +35,7 @@ class ProfileEstimate:
     irregularity : ndarray (2, M)
         Estimated irregularity at the wheels (rail + wheel roughness, contact-filtered) [m].
     rail : ndarray (2, M)
-        Rail roughness [m]: wheel part removed by the comb, contact filter undone.
+        Rail roughness [m]: wheel part removed by the comb, sleeper passing removed, contact filter undone.
     speed_m_s : ndarray (M,)
         Speed of the wheelset at each grid point.
     indexes : BandIndexes
@@ -45,6 +46,8 @@ class ProfileEstimate:
         Synchronous average per wheel (vehicle sides) and its orders.
     conditioning : pandas.DataFrame
         Condition number and regularisation per one-third-octave band (per transfer class).
+    sleeper : SleeperPassing or None
+        What :func:`estimator.sleepers.sleeper_comb` removed (None when the comb was off).
     """
 
     wheelset: int
@@ -60,6 +63,7 @@ class ProfileEstimate:
     resolved: np.ndarray
     wheel: WheelRoughness
     conditioning: pd.DataFrame
+    sleeper: SleeperPassing | None = None
 
     def rail_row(self, rail: str) -> int:
         return self.rails.index(rail)

@@ -50,7 +50,8 @@ MIN_SIGNIFICANCE = 10.0
 #: highest wheel order reported
 MAX_ORDER = 100
 
-__all__ = ["circumference", "comb", "comb_response", "wheel_roughness", "WheelRoughness", "CircumferenceFit"]
+__all__ = ["circumference", "comb", "comb_response", "order_decomposition", "wheel_roughness", "WheelRoughness",
+           "CircumferenceFit"]
 
 
 @dataclass(frozen=True)
@@ -305,6 +306,27 @@ class WheelRoughness:
         return o[(o["side"] == side) & o["significant"]].sort_values("amplitude_m", ascending=False)
 
 
+def order_decomposition(periods: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Orders of a synchronous average and their floors.
+
+    Parameters
+    ----------
+    periods : ndarray (n, N)
+        ``n`` complete periods (revolutions, sleeper bays) of ``N`` samples each, without NaN; ``n ≥ 2``.
+
+    Returns
+    -------
+    mean : ndarray of complex (N // 2 + 1,)
+        One-sided amplitude of each order in the average of the periods (each period's mean removed first).
+    floor : ndarray (N // 2 + 1,)
+        ``σ_k / √n``: what the period-to-period scatter of order ``k`` leaves in an average of ``n`` periods.
+    """
+    n, N = periods.shape
+    F = sfft.rfft(periods - periods.mean(axis=1, keepdims=True), axis=1) * 2 / N
+    mean = F.mean(axis=0)
+    return mean, np.sqrt(np.mean(np.abs(F - mean) ** 2, axis=0) / n)
+
+
 def wheel_roughness(profile: np.ndarray, n_per_rev: int, sides: tuple[str, ...], circumference_m: float,
                     max_order: int | None = MAX_ORDER, floor_factor: float = 4.0) -> WheelRoughness:
     """Synchronous average over every valid revolution and its order decomposition (module docstring).
@@ -325,11 +347,8 @@ def wheel_roughness(profile: np.ndarray, n_per_rev: int, sides: tuple[str, ...],
         n_used = max(n_used, n)
         if n < 2:
             continue
-        revs = revs - revs.mean(axis=1, keepdims=True)
-        F = sfft.rfft(revs, axis=1) * 2 / n_per_rev  # one-sided amplitude per order, per revolution
-        mean = F.mean(axis=0)
-        floor = np.sqrt(np.mean(np.abs(F - mean) ** 2, axis=0) / n)
-        prof[i] = revs.mean(axis=0)
+        mean, floor = order_decomposition(revs)
+        prof[i] = (revs - revs.mean(axis=1, keepdims=True)).mean(axis=0)
         for k in range(1, kmax + 1):
             rows.append({"side": sides[i], "order": k, "amplitude_m": float(abs(mean[k])),
                          "phase_rad": float(np.angle(mean[k])), "floor_m": float(floor[k]),

@@ -24,8 +24,9 @@ run into a :class:`~estimator.results.FieldEstimate`:
    then each wheelset's irregularity is read on a grid of ``N`` samples per
    revolution (step ≤ ``λ_min/3``, :func:`estimator.spatial.spatial_step`);
 8. comb filter at the rotation orders → rail roughness and wheel roughness
-   with its polygon orders (:mod:`estimator.wheel`); contact filter undone
-   (:mod:`estimator.contact_filter`);
+   with its polygon orders (:mod:`estimator.wheel`); the sleeper-passing part
+   removed at its significant orders (:mod:`estimator.sleepers`); contact
+   filter undone (:mod:`estimator.contact_filter`);
 9. EN 13231-3 band indexes where the speed lets the inversion band cover the
    band, exceedance shares; EN 15610 spectra per stretch (line sections and
    curves) with the ISO 3095 limit; corrugation type (:mod:`estimator.corrugation`).
@@ -57,6 +58,7 @@ from estimator.orientation import Orientation, orientation
 from estimator.qc import check_run
 from estimator.results import FieldEstimate, ProfileEstimate
 from estimator.run import Run
+from estimator.sleepers import SleeperPassing, sleeper_comb
 from estimator.spatial import OdometryTrack, nice_step, odometry_track, spatial_step
 from estimator.standards.en13231 import band_indexes, exceedance
 from estimator.standards.en15610 import roughness_spectrum
@@ -238,6 +240,32 @@ def prepare(model, sensors, *, line=None, trackform: Trackform | None = None,
 
 
 # --------------------------------------------------------------------------- helpers
+def sleeper_spacing(cfg: EstimatorConfig, fm: FieldModel) -> float | None:
+    """The sleeper spacing the sleeper comb uses: the option's, else the line's; None when it is off or unknown."""
+    if not cfg.sleeper_comb:
+        return None
+    if cfg.sleeper_spacing_m is not None:
+        return float(cfg.sleeper_spacing_m)
+    return float(fm.line.sleeper_spacing_m) if fm.line is not None else None
+
+
+def _sleeper_step(w: int, kind: str, sp: SleeperPassing) -> str:
+    parts = []
+    for rail in sorted(set(sp.orders["rail"])):
+        o = sp.removed(rail)
+        parts.append(f"rail {rail}: " + (", ".join(f"order {int(r.order)} ({1e3 * r.wavelength_m:.0f} mm) "
+                                                   f"{1e6 * r.amplitude_m:.1f} µm" for r in o.itertuples())
+                                         if len(o) else "nothing significant"))
+    return (f"sleeper passing (spacing {sp.spacing_m:g} m, ±{sp.bays} bays) removed from wheelset {w}, {kind}: "
+            + "; ".join(parts))
+
+
+def _sleeper_off(cfg: EstimatorConfig, fm: FieldModel) -> str:
+    if not cfg.sleeper_comb:
+        return "sleeper passing not separated (sleeper_comb off)"
+    return "sleeper passing not separated: no line and no sleeper_spacing_m given"
+
+
 def _chainage_to_time(track: OdometryTrack, offset: float):
     """Monotone map chainage → time for a wheel ``offset`` ahead of the odometry reference (along chainage)."""
     c = track.chainage * track.travel_sign
@@ -560,6 +588,8 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
     bands = cfg.bands_mm
     windows = [cfg.window_m(b) for b in bands]
     c_nom = 2 * math.pi * cfg.wheel_radius_m * float(np.median(track.scale))
+    spacing = sleeper_spacing(cfg, fm)
+    sleeper_steps: list[str] = []
     for w in sorted({w for w, _ in tis}):
         offset = orient.wheelset_offset_sign[w] * wb / 2
         t_of = _chainage_to_time(track, offset)
@@ -590,6 +620,10 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
             ti = tis[(w, kind)]  # rows of irr_sides: vehicle sides of ti.sides
             rails = tuple(orient.rail_of_side[s] for s in ti.sides)
             wheel = wheel_roughness(irr_sides, n_rev, ti.sides, fit.circumference_m)
+            passing = None
+            if spacing is not None:
+                rail_part, passing = sleeper_comb(rail_part, float(x[0]), dx, spacing, rails, bays=cfg.sleeper_bays)
+                sleeper_steps.append(_sleeper_step(w, kind, passing))
             # one spectrum of the rail part serves the contact-filter correction and every EN band
             bad = ~np.isfinite(rail_part)
             nfft = sfft.next_fast_len(x.size + int(math.ceil(2 * max(b[1] for b in bands) * 1e-3 / dx)))
@@ -601,11 +635,12 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
             rail[bad] = np.nan
             idx = band_indexes(rail, dx, bands, windows, resolved[:, None, :], spectrum=(P, nfft))
             profiles[(w, kind)] = ProfileEstimate(w, orient.role(w), kind, rails, x, dx, irr_sides, rail, v, idx,
-                                                  resolved, wheel, conditioning[(w, kind)])
+                                                  resolved, wheel, conditioning[(w, kind)], passing)
     timings["space_comb_indexes"] = time.perf_counter() - t0
     steps.append("time -> chainage at " + ", ".join(f"wheelset {w}: dx {1e3 * d:.2f} mm, circumference "
                                                      f"{circ[w].circumference_m:.4f} m" for w, d in dx_used.items())
                  + f"; shortest resolved wavelength {1e3 * lam_min:.1f} mm")
+    steps += sleeper_steps or [_sleeper_off(cfg, fm)]
     # ---- tables: indexes, spectra, corrugation
     t0 = time.perf_counter()
     all_x = np.concatenate([p.chainage_m for p in profiles.values()])

@@ -83,7 +83,8 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
 
     cfg = EstimatorConfig(models=models, speed_gate_m_s=args.speed_gate, wheelbase_m=args.wheelbase,
                           regularisation=args.regularisation, bogie_coupling=not args.single_wheelset,
-                          contact=ContactParameters(wheel_load_N=args.wheel_load * 1e3))
+                          contact=ContactParameters(wheel_load_N=args.wheel_load * 1e3),
+                          sleeper_comb=not args.keep_sleeper_passing, sleeper_spacing_m=args.sleeper_spacing)
     trackform = load_trackform(args.trackform) if args.trackform else None
     t0 = time.perf_counter()
     step(f"preparing the transfer functions ({', '.join(models)}) from {args.model}")
@@ -177,6 +178,11 @@ def add_field_commands(sub) -> None:
     est.add_argument("--single-wheelset", action="store_true",
                      help="the thesis's single-wheelset transfer functions: leave out the rail's coupling of the "
                           "bogie's two wheelsets (default: included)")
+    est.add_argument("--sleeper-spacing", default=None, type=bounded_float("--sleeper-spacing", 0.2, 5.0, unit="m"),
+                     help="sleeper spacing [m] for the sleeper comb (default: the --line's)")
+    est.add_argument("--keep-sleeper-passing", action="store_true",
+                     help="leave the sleeper-passing part (the rail's deflection under the wheel across each bay) in "
+                          "the estimate (default: its significant orders are removed)")
     est.add_argument("--calibration", default=None, type=calibration_path, metavar="DIR",
                      help="calibrated_model/ folder of 'railmodal field diagnose' made for this --model: its field "
                           "effects (trackform, contact angles, mounting points, ...) are applied and named in the "

@@ -52,10 +52,36 @@ def test_field_estimate_writes_profiles_tables_figures_and_the_report(inputs, ca
     assert len(vl) == 4 and vl["energy_error_db"].abs().max() < 1.5  # whole run: corrugation dominates the energy
 
 
+def test_sleeper_comb_is_reported_and_can_be_switched_off(inputs, capsys):
+    """The synthetic forward map has no sleeper passing: with a spacing given, the comb tests every order, finds
+    none and says so; without a line or spacing, and with --keep-sleeper-passing, the history says why it did not
+    run."""
+    tmp, model, sensors, sr = inputs
+    base = ["-q", "field", "estimate", "--run", str(sr.path), "--sensors", str(sensors), "--model", str(model),
+            "--models", "vertical", "--wheelbase", "2.2"]
+    histories = {}
+    for name, extra in (("given", ["--sleeper-spacing", "0.6"]), ("none", []),
+                        ("kept", ["--sleeper-spacing", "0.6", "--keep-sleeper-passing"])):
+        out = tmp / f"sleeper_{name}"
+        assert main(base + extra + ["--out", str(out)]) == 0, capsys.readouterr().err
+        summary = json.loads((out / "summary.json").read_text())
+        histories[name] = " | ".join(summary["processing"])
+        if name == "given":
+            assert {(s["wheelset"], s["spacing_m"]) for s in summary["sleeper_passing"]} == {(1, 0.6), (2, 0.6)}
+            assert all(s["removed"] == [] for s in summary["sleeper_passing"])
+        else:
+            assert summary["sleeper_passing"] == []
+    assert "sleeper passing (spacing 0.6 m, ±64 bays) removed from wheelset 1, vertical: rail L: nothing " \
+           "significant" in histories["given"]
+    assert "no line and no sleeper_spacing_m given" in histories["none"]
+    assert "sleeper_comb off" in histories["kept"]
+
+
 @pytest.mark.parametrize("args, message", [
     (["--models", "half,sideways"], "unknown transfer-function model 'sideways'"),
     (["--speed-gate", "0"], "--speed-gate"),
     (["--wheelbase", "40"], "--wheelbase"),
+    (["--sleeper-spacing", "0.01"], "--sleeper-spacing"),
 ])
 def test_bad_arguments_are_refused_before_any_work(inputs, capsys, args, message):
     tmp, model, sensors, sr = inputs

@@ -209,6 +209,45 @@ def test_leading_and_trailing_wheelsets_agree_within_their_scatter():
         assert abs(r.mean_diff_db) <= 1.5, r
 
 
+def quasi_static_sleeper_passing_um(trackform, wheel_load_n: float) -> float:
+    """Order 1 [µm] of the rail's deflection under the wheel load across a bay: ``P α(x)``.
+
+    ``α(x)`` is the discretely supported track's receptance at bay position ``x``, at 0.5 Hz (quasi-static).
+    It comes from :func:`receptance.track.track_receptance`, which shares no code with the line's
+    time-domain track.
+    """
+    from receptance.track import track_receptance
+
+    pos = np.arange(32) / 32
+    w = wheel_load_n * np.array([track_receptance(np.array([0.5]), trackform, "vertical", supports="discrete",
+                                                  position=q)[0].real for q in pos])
+    return float(abs(np.fft.rfft(w)[1]) * 2 / pos.size * 1e6)
+
+
+def test_sleeper_passing_is_found_on_the_line_and_is_the_rails_deflection_under_the_wheel():
+    """The wheel follows the rail's deflection under its own load across each sleeper bay. The sleeper comb
+    finds its order 1 on both rails of both wheelsets, and its amplitude within 25 % of ``P α(x)``. The line
+    holds no rail roughness periodic with the sleepers, and no other order stands out.
+
+    Measured: 16–17 µm on the line against 18.1 µm quasi-static. I did not identify the 10 % gap. The
+    wheelset's inertia at 12–15 Hz is not it: the track's receptance there is only 1 % above the static one.
+    """
+    folder, run, fm, est, _ = nominal_case()
+    x = est.profile(est.leading, "vertical_lateral").chainage_m
+    sections = fm.trackforms()
+    main = max(sections, key=lambda s: max(0.0, min(s[1], x[-1]) - max(s[0], x[0])))[2]
+    oracle = quasi_static_sleeper_passing_um(main, truth_of(folder)["vehicle"]["static_wheel_load_N"])
+    assert 10.0 < oracle < 30.0  # the oracle itself is what a metro track gives (0.8 mm static deflection)
+    for w in (1, 2):
+        sp = est.profile(w, "vertical_lateral").sleeper
+        assert sp.spacing_m == pytest.approx(json.loads((folder / "line.json").read_text())["sleeper_spacing_m"])
+        for rail in "LR":
+            removed = sp.removed(rail)
+            assert list(removed["order"]) == [1], (w, rail, removed)
+            assert removed["amplitude_m"].iloc[0] * 1e6 == pytest.approx(oracle, rel=0.25), (w, rail)
+    assert any(s.startswith("sleeper passing (spacing 0.75 m") for s in est.processing)
+
+
 def test_wheel_polygon_is_separated_on_the_line():
     """`wheel_polygon` (12th order, 15 µm on wheelset 1 left): the rail estimate after the comb within 1 dB of
     the `nominal` run's, the polygon's order and amplitude within 20 %."""
