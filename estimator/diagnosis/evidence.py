@@ -28,7 +28,9 @@ smoother, +3 dB on a fresh-ground one). :func:`comb_channels` applies the
 same comb to the channels first, in the wheelset's angle, with the
 circumference the estimator found — at a locally constant speed the comb
 and the inversion's linear time-invariant filter commute, so the estimate
-of the combed channels is the estimator's combed estimate.
+of the combed channels is the estimator's combed estimate. The estimator's
+sleeper comb (:mod:`estimator.sleepers`) is applied the same way, at the
+sleeper spacing and the orders it removed from the estimate.
 
 Cells: run × wheelset × segment × rail × one-third-octave wavelength band
 (IEC 61260 base-10 bands) that the segment's speed puts inside the
@@ -190,8 +192,13 @@ def reference_band_variance(x: np.ndarray, r: np.ndarray, band_table: np.ndarray
 COMB_UPSAMPLING = 4
 
 
-def comb_channels(acc: np.ndarray, chainage: np.ndarray, circumference_m: float, revolutions: int) -> np.ndarray:
+def comb_channels(acc: np.ndarray, chainage: np.ndarray, circumference_m: float, revolutions: int,
+                  orders=None) -> np.ndarray:
     """Accelerations with one wheelset's periodic (wheel) part removed by the estimator's comb.
+
+    With ``orders``, the same for another period in chainage: the sleeper spacing in ``circumference_m``,
+    ``R`` in bays, and only the orders the estimator's sleeper comb removed
+    (:func:`estimator.sleepers.sleeper_comb`).
 
     Parameters
     ----------
@@ -240,6 +247,14 @@ def comb_channels(acc: np.ndarray, chainage: np.ndarray, circumference_m: float,
     X = np.stack([np.interp(grid, us, a[forward]) for a in up])
     X[:, np.interp(grid, us, bad_up[forward].astype(float)) > 0] = np.nan
     periodic = np.nan_to_num(X - comb(X, n_per_rev, revolutions)[0])
+    if orders is not None:
+        n_rev = grid.size // n_per_rev
+        F = np.fft.rfft(periodic[:, :n_rev * n_per_rev].reshape(len(up), n_rev, n_per_rev), axis=2)
+        keep = np.zeros(F.shape[2], bool)
+        keep[[k for k in orders if 0 < k < F.shape[2]]] = True
+        F[:, :, ~keep] = 0.0
+        periodic = np.concatenate([np.fft.irfft(F, n_per_rev, axis=2).reshape(len(up), -1),
+                                   np.zeros((len(up), grid.size - n_rev * n_per_rev))], axis=1)
     out = acc.copy()
     fwd = np.concatenate([[True], np.diff(u) > 0]) & (u >= np.maximum.accumulate(u))
     for i in range(acc.shape[0]):

@@ -264,6 +264,11 @@ def run_field_diagnosis(runs: Sequence, references: Sequence, site: tuple[float,
             # the estimator's comb removes this wheelset's wheel roughness from all it inverts (own and coupled)
             combed = comb_channels(masked_acc, chain, est.circumference[w].circumference_m, ecfg.comb_revolutions) \
                 if w in est.circumference else None
+            sleeper = est.profile(w, cfg.model).sleeper if (w, cfg.model) in est.profiles else None
+            removed = sorted(set(sleeper.orders.loc[sleeper.orders["significant"], "order"])) if sleeper else []
+            if removed:  # and its sleeper comb the sleeper-passing part, at the orders it removed
+                combed = comb_channels(masked_acc if combed is None else combed, chain, sleeper.spacing_m,
+                                       sleeper.bays, orders=removed)
             speed = np.abs(track.speed_at(qrun.t))
             c_lo, c_hi = float(np.nanmin(chain)), float(np.nanmax(chain))
             rails = tuple(orient.rail_of_side[s] for s in blocks[w].sides)
