@@ -6,8 +6,9 @@ sleeper bay (stiffer above a sleeper, softer at mid-span). This parametric
 excitation repeats with the sleeper spacing ``d`` (Knothe & Grassie 1993;
 Nielsen & Igeland 1995). The axlebox accelerometers see it like a roughness
 at ``d`` and its harmonics ``d/k``. A trolley measures the unloaded rail, so
-it does not see it. The estimator's transfer functions are time-invariant
-(thesis eq. 2.30–2.33), so they leave this part in the estimated roughness.
+it does not see it. The estimator's transfer functions are time-invariant,
+built on the thesis's continuously supported rail (eq. 2.32–2.35), so they
+leave this part in the estimated roughness.
 For ``d`` between 0.5 and 1 m it lands in the EN 13231-3 300–1000 mm band.
 
 It is periodic in the line's chainage, not in time. The separation is the

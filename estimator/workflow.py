@@ -253,14 +253,13 @@ def _sleeper_step(w: int, kind: str, sp: SleeperPassing) -> str:
     parts = []
     for rail in sorted(set(sp.orders["rail"])):
         o = sp.removed(rail)
-        parts.append(f"rail {rail}: " + (", ".join(f"order {int(r.order)} ({1e3 * r.wavelength_m:.0f} mm) "
-                                                   f"{1e6 * r.amplitude_m:.1f} µm" for r in o.itertuples())
-                                         if len(o) else "nothing significant"))
-    return (f"sleeper passing (spacing {sp.spacing_m:g} m, ±{sp.bays} bays) removed from wheelset {w}, {kind}: "
-            + "; ".join(parts))
+        orders = ", ".join(f"order {int(r.order)} ({1e3 * r.wavelength_m:.0f} mm) {1e6 * r.amplitude_m:.1f} µm"
+                           for r in o.itertuples())
+        parts.append(f"rail {rail}: " + (f"removed {orders}" if len(o) else "nothing significant"))
+    return f"sleeper passing (spacing {sp.spacing_m:g} m, ±{sp.bays} bays), wheelset {w}, {kind}: " + "; ".join(parts)
 
 
-def _sleeper_off(cfg: EstimatorConfig, fm: FieldModel) -> str:
+def _sleeper_off(cfg: EstimatorConfig) -> str:
     if not cfg.sleeper_comb:
         return "sleeper passing not separated (sleeper_comb off)"
     return "sleeper passing not separated: no line and no sleeper_spacing_m given"
@@ -640,7 +639,7 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
     steps.append("time -> chainage at " + ", ".join(f"wheelset {w}: dx {1e3 * d:.2f} mm, circumference "
                                                      f"{circ[w].circumference_m:.4f} m" for w, d in dx_used.items())
                  + f"; shortest resolved wavelength {1e3 * lam_min:.1f} mm")
-    steps += sleeper_steps or [_sleeper_off(cfg, fm)]
+    steps += sleeper_steps or [_sleeper_off(cfg)]
     # ---- tables: indexes, spectra, corrugation
     t0 = time.perf_counter()
     all_x = np.concatenate([p.chainage_m for p in profiles.values()])
