@@ -47,7 +47,8 @@ def summary(e: FieldEstimate) -> dict:
                                    "significance": c.significance} for w, c in e.circumference.items()},
         "sleeper_passing": [{"wheelset": w, "model": m, "spacing_m": p.sleeper.spacing_m, "bays": p.sleeper.bays,
                              "removed": [{"rail": r.rail, "order": int(r.order), "wavelength_m": r.wavelength_m,
-                                          "amplitude_m": r.amplitude_m, "floor_m": r.floor_m}
+                                          "amplitude_m": r.amplitude_m, "floor_m": r.floor_m,
+                                          "track_model_m": r.expected_m if math.isfinite(r.expected_m) else None}
                                          for r in p.sleeper.orders[p.sleeper.orders["significant"]].itertuples()]}
                             for (w, m), p in e.profiles.items() if p.sleeper is not None],
         "models": list(e.models), "skipped": list(e.skipped), "stretches": [list(s) for s in e.stretches],

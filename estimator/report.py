@@ -74,14 +74,16 @@ def write_report(estimate, path, *, figures: Mapping[str, Path] | None = None,
               "samples per wheel revolution.</p>", _table(e.odometry), _table(circ)]
     sleeper = [pd.DataFrame({"wheelset": w, "model": m, "rail": o["rail"], "order": o["order"],
                              "wavelength_mm": 1e3 * o["wavelength_m"], "amplitude_um": 1e6 * o["amplitude_m"],
-                             "floor_um": 1e6 * o["floor_m"]})
+                             "floor_um": 1e6 * o["floor_m"], "track_model_um": 1e6 * o["expected_m"]})
                for (w, m), p in e.profiles.items() if p.sleeper is not None
                for o in [p.sleeper.orders[p.sleeper.orders["significant"]]]]
     if sleeper:
         parts += ["<p>Sleeper passing: the wheel follows the rail's deflection under its own load, which repeats "
                   "with the sleeper spacing; a trolley does not see it. The orders of the sleeper spacing that "
                   "stand above 4× their floor were removed from the rail estimate (amplitudes of the run's "
-                  "synchronous average; none listed: nothing removed).</p>",
+                  "synchronous average; none listed: nothing removed). Beside them, what the trackform gives under "
+                  "the static wheel load: a measured amplitude well above it points to weaker support than the "
+                  "trackform says (voided sleepers, worn pads).</p>",
                   _table(pd.concat(sleeper, ignore_index=True), 40)]
     # 4
     f_lo, f_hi = e.band_hz

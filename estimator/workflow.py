@@ -58,7 +58,7 @@ from estimator.orientation import Orientation, orientation
 from estimator.qc import check_run
 from estimator.results import FieldEstimate, ProfileEstimate
 from estimator.run import Run
-from estimator.sleepers import SleeperPassing, sleeper_comb
+from estimator.sleepers import SleeperPassing, quasi_static_orders, sleeper_comb
 from estimator.spatial import OdometryTrack, nice_step, odometry_track, spatial_step
 from estimator.standards.en13231 import band_indexes, exceedance
 from estimator.standards.en15610 import roughness_spectrum
@@ -249,12 +249,27 @@ def sleeper_spacing(cfg: EstimatorConfig, fm: FieldModel) -> float | None:
     return float(fm.line.sleeper_spacing_m) if fm.line is not None else None
 
 
+def expected_sleeper_passing(fm: FieldModel, x: np.ndarray, spacing: float) -> np.ndarray | None:
+    """The track model's quasi-static sleeper-passing orders under the wheel load (:func:`quasi_static_orders`)
+    for the trackform covering most of ``x``; None when that trackform's support spacing is not ``spacing``."""
+    sections = fm.trackforms()
+    tf = max(sections, key=lambda s: min(s[1], x[-1]) - max(s[0], x[0]))[2] if sections else fm.default_trackform()
+    if abs(tf.support_spacing - spacing) > 0.01 * spacing:
+        return None
+    load = fm.config.contact.wheel_load_N
+    key = ("sleeper_passing", tf, load)
+    if key not in fm.cache:
+        fm.cache[key] = quasi_static_orders(tf, load)
+    return fm.cache[key]
+
+
 def _sleeper_step(w: int, kind: str, sp: SleeperPassing) -> str:
     parts = []
     for rail in sorted(set(sp.orders["rail"])):
         o = sp.removed(rail)
         orders = ", ".join(f"order {int(r.order)} ({1e3 * r.wavelength_m:.0f} mm) {1e6 * r.amplitude_m:.1f} µm"
-                           for r in o.itertuples())
+                           + (f" (track model under the wheel load {1e6 * r.expected_m:.1f} µm)"
+                              if np.isfinite(r.expected_m) else "") for r in o.itertuples())
         parts.append(f"rail {rail}: " + (f"removed {orders}" if len(o) else "nothing significant"))
     return f"sleeper passing (spacing {sp.spacing_m:g} m, ±{sp.bays} bays), wheelset {w}, {kind}: " + "; ".join(parts)
 
@@ -621,7 +636,8 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
             wheel = wheel_roughness(irr_sides, n_rev, ti.sides, fit.circumference_m)
             passing = None
             if spacing is not None:
-                rail_part, passing = sleeper_comb(rail_part, float(x[0]), dx, spacing, rails, bays=cfg.sleeper_bays)
+                rail_part, passing = sleeper_comb(rail_part, float(x[0]), dx, spacing, rails, bays=cfg.sleeper_bays,
+                                                  expected_m=expected_sleeper_passing(fm, x, spacing))
                 sleeper_steps.append(_sleeper_step(w, kind, passing))
             # one spectrum of the rail part serves the contact-filter correction and every EN band
             bad = ~np.isfinite(rail_part)

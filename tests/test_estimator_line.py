@@ -246,6 +246,10 @@ def test_sleeper_passing_is_found_on_the_line_and_is_the_rails_deflection_under_
             assert list(removed["order"]) == [1], (w, rail, removed)
             assert removed["amplitude_m"].iloc[0] * 1e6 == pytest.approx(oracle, rel=0.25), (w, rail)
     assert any(s.startswith("sleeper passing (spacing 0.75 m") for s in est.processing)
+    # the estimator's own expectation (the analyst's wheel load on the line's trackform) is reported beside it
+    expected = est.profile(est.leading, "vertical_lateral").sleeper.removed("L")["expected_m"].iloc[0] * 1e6
+    load = fm.config.contact.wheel_load_N
+    assert expected == pytest.approx(quasi_static_sleeper_passing_um(main, load), rel=0.02)
 
 
 def test_wheel_polygon_is_separated_on_the_line():
