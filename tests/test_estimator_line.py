@@ -209,25 +209,13 @@ def test_leading_and_trailing_wheelsets_agree_within_their_scatter():
         assert abs(r.mean_diff_db) <= 1.5, r
 
 
-def quasi_static_sleeper_passing_um(trackform, wheel_load_n: float) -> float:
-    """Order 1 [µm] of the rail's deflection under the wheel load across a bay: ``P α(x)``.
-
-    ``α(x)`` is the discretely supported track's receptance at bay position ``x``, at 0.5 Hz (quasi-static).
-    It comes from :func:`receptance.track.track_receptance`, which shares no code with the line's
-    time-domain track.
-    """
-    from receptance.track import track_receptance
-
-    pos = np.arange(32) / 32
-    w = wheel_load_n * np.array([track_receptance(np.array([0.5]), trackform, "vertical", supports="discrete",
-                                                  position=q)[0].real for q in pos])
-    return float(abs(np.fft.rfft(w)[1]) * 2 / pos.size * 1e6)
-
-
 def test_sleeper_passing_is_found_on_the_line_and_is_the_rails_deflection_under_the_wheel():
     """The wheel follows the rail's deflection under its own load across each sleeper bay. The sleeper comb
-    finds its order 1 on both rails of both wheelsets, and its amplitude within 25 % of ``P α(x)``. The line
-    holds no rail roughness periodic with the sleepers, and no other order stands out.
+    finds its order 1 on both rails of both wheelsets, with an amplitude within 25 % of ``P α(x)``: the line's
+    static wheel load times the discretely supported track's receptance across a bay
+    (:func:`estimator.sleepers.quasi_static_orders`, held to a static Timoshenko beam FE in
+    ``tests/test_estimator_sleepers.py``; it shares no code with the line's time-domain track). The line holds no
+    rail roughness periodic with the sleepers, and no other order stands out.
 
     Measured: 16–17 µm on the line against 18.1 µm quasi-static. I did not identify the 10 % gap. The
     wheelset's inertia at 12–15 Hz is not it: the track's receptance there is only 1 % above the static one.
@@ -236,7 +224,9 @@ def test_sleeper_passing_is_found_on_the_line_and_is_the_rails_deflection_under_
     x = est.profile(est.leading, "vertical_lateral").chainage_m
     sections = fm.trackforms()
     main = max(sections, key=lambda s: max(0.0, min(s[1], x[-1]) - max(s[0], x[0])))[2]
-    oracle = quasi_static_sleeper_passing_um(main, truth_of(folder)["vehicle"]["static_wheel_load_N"])
+    from estimator.sleepers import quasi_static_orders
+
+    oracle = quasi_static_orders(main, truth_of(folder)["vehicle"]["static_wheel_load_N"])[0] * 1e6
     assert 10.0 < oracle < 30.0  # the oracle itself is what a metro track gives (0.8 mm static deflection)
     for w in (1, 2):
         sp = est.profile(w, "vertical_lateral").sleeper
@@ -249,7 +239,7 @@ def test_sleeper_passing_is_found_on_the_line_and_is_the_rails_deflection_under_
     # the estimator's own expectation (the analyst's wheel load on the line's trackform) is reported beside it
     expected = est.profile(est.leading, "vertical_lateral").sleeper.removed("L")["expected_m"].iloc[0] * 1e6
     load = fm.config.contact.wheel_load_N
-    assert expected == pytest.approx(quasi_static_sleeper_passing_um(main, load), rel=0.02)
+    assert expected == pytest.approx(quasi_static_orders(main, load)[0] * 1e6, rel=1e-9)
 
 
 def test_wheel_polygon_is_separated_on_the_line():
