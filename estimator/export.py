@@ -49,7 +49,7 @@ def summary(e: FieldEstimate) -> dict:
                              "removed": [{"rail": r.rail, "order": int(r.order), "wavelength_m": r.wavelength_m,
                                           "amplitude_m": r.amplitude_m, "floor_m": r.floor_m,
                                           "track_model_m": r.expected_m if math.isfinite(r.expected_m) else None}
-                                         for r in p.sleeper.orders[p.sleeper.orders["significant"]].itertuples()]}
+                                         for r in p.sleeper.significant.itertuples()]}
                             for (w, m), p in e.profiles.items() if p.sleeper is not None],
         "models": list(e.models), "skipped": list(e.skipped), "stretches": [list(s) for s in e.stretches],
         "config": {k: (v if isinstance(v, (int, float, str, bool, type(None), list, dict)) else str(v))

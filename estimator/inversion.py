@@ -229,10 +229,8 @@ def regularised_inverse(D: np.ndarray, B: np.ndarray, f: np.ndarray, alpha: floa
     Returns
     -------
     T : ndarray (n_f, k, m)
-    condition : ndarray (n_f,)
-        ``s_max/s_min`` of ``B``.
-    filter_min : ndarray (n_f,)
-        Smallest Tikhonov filter factor (1 = untouched).
+    condition, filter_min : ndarray (n_f,)
+        As :func:`tikhonov_inverse`.
     pinv : ndarray (n_f, k, m)
         Only with ``with_inverse``: ``B⁺_α`` (:func:`tikhonov_inverse`), the contact forces per unit acceleration.
     """

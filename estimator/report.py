@@ -72,11 +72,14 @@ def write_report(estimate, path, *, figures: Mapping[str, Path] | None = None,
               f"<p>Wheelbase {e.wheelbase_m:.3f} m ({_e(e.wheelbase_source)}). Shortest wavelength the run resolves "
               f"{1e3 * e.lambda_min_m:.1f} mm (the run's slowest kept speed / f_hi); each wheelset's profile has a whole number of "
               "samples per wheel revolution.</p>", _table(e.odometry), _table(circ)]
-    sleeper = [pd.DataFrame({"wheelset": w, "model": m, "rail": o["rail"], "order": o["order"],
-                             "wavelength_mm": 1e3 * o["wavelength_m"], "amplitude_um": 1e6 * o["amplitude_m"],
-                             "floor_um": 1e6 * o["floor_m"], "track_model_um": 1e6 * o["expected_m"]})
-               for (w, m), p in e.profiles.items() if p.sleeper is not None
-               for o in [p.sleeper.orders[p.sleeper.orders["significant"]]]]
+    sleeper = []
+    for (w, m), p in e.profiles.items():
+        if p.sleeper is not None:
+            o = p.sleeper.significant
+            sleeper.append(pd.DataFrame({"wheelset": w, "model": m, "rail": o["rail"], "order": o["order"],
+                                         "wavelength_mm": 1e3 * o["wavelength_m"],
+                                         "amplitude_um": 1e6 * o["amplitude_m"], "floor_um": 1e6 * o["floor_m"],
+                                         "track_model_um": 1e6 * o["expected_m"]}))
     if sleeper:
         parts += ["<p>Sleeper passing: the wheel follows the rail's deflection under its own load, which repeats "
                   "with the sleeper spacing; a trolley does not see it. The orders of the sleeper spacing that "

@@ -86,10 +86,15 @@ class SleeperPassing:
     orders: pd.DataFrame
     removed_rms_m: tuple[float, ...]
 
+    @property
+    def significant(self) -> pd.DataFrame:
+        """The removed orders of every rail (rows of :attr:`orders`, in their order)."""
+        return self.orders[self.orders["significant"]]
+
     def removed(self, rail: str) -> pd.DataFrame:
         """Significant (removed) orders of one rail, largest first."""
-        o = self.orders
-        return o[(o["rail"] == rail) & o["significant"]].sort_values("amplitude_m", ascending=False)
+        o = self.significant
+        return o[o["rail"] == rail].sort_values("amplitude_m", ascending=False)
 
 
 def quasi_static_orders(trackform, wheel_load_n: float, max_order: int = 12, n_positions: int = 64) -> np.ndarray:

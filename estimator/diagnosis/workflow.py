@@ -265,7 +265,7 @@ def run_field_diagnosis(runs: Sequence, references: Sequence, site: tuple[float,
             combed = comb_channels(masked_acc, chain, est.circumference[w].circumference_m, ecfg.comb_revolutions) \
                 if w in est.circumference else None
             sleeper = est.profile(w, cfg.model).sleeper if (w, cfg.model) in est.profiles else None
-            removed = sorted(set(sleeper.orders.loc[sleeper.orders["significant"], "order"])) if sleeper else []
+            removed = sorted(set(sleeper.significant["order"])) if sleeper else []
             if removed:  # and its sleeper comb the sleeper-passing part, at the orders it removed
                 combed = comb_channels(masked_acc if combed is None else combed, chain, sleeper.spacing_m,
                                        sleeper.bays, orders=removed)
