@@ -37,7 +37,8 @@ def batch(tmp_path_factory):
     spec = IngestSpec(str(d / "hybrid_model.npz"), str(d / "sensors.csv"), estimator=EstimatorConfig(wheelbase_m=2.2),
                       monitoring=MonitoringConfig(n_perturbed=1, placement_shifts_mm=(30.0,), placement_axes=("y",),
                                                    contact_load_range=0.0, contact_head_radius_m=(),
-                                                   track_stiffness_factor=1.0, track_discrete_supports=False))
+                                                   track_stiffness_factor=1.0, track_damping_factor=1.0,
+                                                   track_loss_reference_hz=(), track_discrete_supports=False))
     return d, runs + [bad], spec
 
 

@@ -345,7 +345,8 @@ def test_a_day_with_one_run_takes_the_sections_pooled_scatter():
 
 def test_contact_and_track_variants_span_the_stated_ranges():
     """Wheel load ±25 %: Hertz semi-axis and stiffness scale as (1 ± 0.25)^(1/3) (a ∝ (P R)^(1/3), k_H ∝
-    P^(1/3)); the track variants: discrete supports, pad and ballast stiffness ×2 and ÷2 on every trackform."""
+    P^(1/3)); the track variants: discrete supports, pad and ballast stiffness and damping ×2 and ÷2 on every
+    trackform, and the causal loss law with the table's stiffness at 10 Hz and at 1 kHz."""
     from test_estimator_synthetic import control_model, sensor_table
 
     from estimator.monitoring.variants import contact_variants, track_variants
@@ -363,14 +364,33 @@ def test_contact_and_track_variants_span_the_stated_ranges():
     assert cv[3].field_model.semi_axis_m < fm.semi_axis_m < cv[2].field_model.semi_axis_m
     tv = track_variants(fm, CFG)
     assert [v.label for v in tv] == ["discrete supports (midspan)", "pad stiffness x2", "pad stiffness x0.5",
-                                     "ballast stiffness x2", "ballast stiffness x0.5"]
+                                     "ballast stiffness x2", "ballast stiffness x0.5", "pad damping x2",
+                                     "pad damping x0.5", "ballast damping x2", "ballast damping x0.5",
+                                     "causal layers, stated stiffness at 10 Hz",
+                                     "causal layers, stated stiffness at 1000 Hz"]
     assert tv[0].field_model.config.trackform_supports == "discrete"
     base = fm.default_trackform()
-    assert tv[1].field_model.default_trackform().pad_stiffness_z == pytest.approx(2 * base.pad_stiffness_z)
-    assert tv[4].field_model.default_trackform().subplate_stiffness_y == pytest.approx(0.5 * base.subplate_stiffness_y)
-    assert tv[4].field_model.default_trackform().pad_stiffness_z == base.pad_stiffness_z
+    tf = {v.label: v.field_model.default_trackform() for v in tv[1:]}
+    assert tf["pad stiffness x2"].pad_stiffness_z == pytest.approx(2 * base.pad_stiffness_z)
+    assert tf["ballast stiffness x0.5"].subplate_stiffness_y == pytest.approx(0.5 * base.subplate_stiffness_y)
+    assert tf["ballast stiffness x0.5"].pad_stiffness_z == base.pad_stiffness_z
+    # a layer's damping is its loss factor and its dashpot together; its stiffness and the other layer stay
+    pd2 = tf["pad damping x2"]
+    assert (pd2.pad_loss_factor, pd2.pad_damping_z, pd2.pad_damping_y) == pytest.approx(
+        (2 * base.pad_loss_factor, 2 * base.pad_damping_z, 2 * base.pad_damping_y))
+    assert (pd2.pad_stiffness_z, pd2.subplate_loss_factor) == (base.pad_stiffness_z, base.subplate_loss_factor)
+    assert tf["ballast damping x0.5"].subplate_damping_z == pytest.approx(0.5 * base.subplate_damping_z)
+    # the causal law: the table's stiffness at the stated frequency, softer below it, stiffer above
+    from receptance.track import layer_dispersion, support_stiffness_per_metre
+    for label, fr in (("causal layers, stated stiffness at 10 Hz", 10.0),
+                      ("causal layers, stated stiffness at 1000 Hz", 1000.0)):
+        assert tf[label].loss_reference_hz == fr and base.loss_reference_hz is None
+        k_causal = support_stiffness_per_metre(fr, tf[label])
+        assert abs(k_causal / support_stiffness_per_metre(fr, base) - 1) < 1e-12
+        lo, at, hi = layer_dispersion([0.5 * fr, fr, 2 * fr], base.pad_loss_factor, fr)
+        assert lo < at == 1.0 < hi
     none = CFG.replace(contact_load_range=0.0, contact_head_radius_m=(), track_stiffness_factor=1.0,
-                       track_discrete_supports=False)
+                       track_damping_factor=1.0, track_loss_reference_hz=(), track_discrete_supports=False)
     assert contact_variants(fm, none) == [] and track_variants(fm, none) == []
 
 

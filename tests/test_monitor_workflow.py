@@ -19,7 +19,8 @@ from estimator.monitoring.averaging import energy_mean_db
 from estimator.monitoring import IngestSpec, MonitoringConfig, MonitoringStore, ingest, monitor, reprocess
 
 MON = MonitoringConfig(n_perturbed=2, placement_shifts_mm=(30.0,), placement_axes=("y",), uncertainty_runs=1,
-                       contact_head_radius_m=(), track_discrete_supports=False, sensor_noise_rms_m_s2=0.03)
+                       contact_head_radius_m=(), track_damping_factor=1.0, track_loss_reference_hz=(),
+                       track_discrete_supports=False, sensor_noise_rms_m_s2=0.03)
 
 
 @pytest.fixture(scope="module")

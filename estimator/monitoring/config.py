@@ -45,10 +45,15 @@ class MonitoringConfig:
         to crush load), ``contact_head_radius_m`` (rail head transverse radii
         bounding the contact geometry), ``track_stiffness_factor`` (pad and
         ballast stiffness times and divided by it; 1: none),
+        ``track_damping_factor`` (pad and ballast damping, loss factor and
+        viscous coefficient together, times and divided by it; 1: none),
+        ``track_loss_reference_hz`` (the causal loss law with the trackform's
+        stiffness holding at each of these frequencies; empty: none),
         ``track_discrete_supports`` (the discretely supported rail's
         receptance as a variant) — the contact and track sources of
         :mod:`estimator.monitoring.variants` (a zero range, no radius, a
-        factor 1 and no discrete supports leave a source out);
+        factor 1, no reference frequency and no discrete supports leave a
+        source out);
         ``sensor_noise_rms_m_s2`` (the accelerometer chain's noise, RMS over
         the recorded band, from its datasheet or a standstill recording;
         ``None``: no noise floor, :mod:`estimator.monitoring.floor`).
@@ -90,6 +95,8 @@ class MonitoringConfig:
     contact_load_range: float = 0.25
     contact_head_radius_m: tuple[float, ...] = (0.2, 0.5)
     track_stiffness_factor: float = 2.0
+    track_damping_factor: float = 2.0
+    track_loss_reference_hz: tuple[float, ...] = (10.0, 1000.0)
     track_discrete_supports: bool = True
     sensor_noise_rms_m_s2: float | None = None
     consistency_min_db: float = 2.0
@@ -134,6 +141,10 @@ class MonitoringConfig:
         for r in self.contact_head_radius_m:
             _num("contact_head_radius_m", r, 0.01, 10.0, unit="m")
         _num("track_stiffness_factor", self.track_stiffness_factor, 1.0, 10.0)
+        _num("track_damping_factor", self.track_damping_factor, 1.0, 10.0)
+        for f in self.track_loss_reference_hz:
+            _num("track_loss_reference_hz", f, 0.1, 1e5, unit="Hz")
+        object.__setattr__(self, "track_loss_reference_hz", tuple(float(f) for f in self.track_loss_reference_hz))
         if self.sensor_noise_rms_m_s2 is not None:
             _num("sensor_noise_rms_m_s2", self.sensor_noise_rms_m_s2, 0.0, 1e3, lo_open=True, unit="m/s^2")
         object.__setattr__(self, "contact_head_radius_m", tuple(float(r) for r in self.contact_head_radius_m))

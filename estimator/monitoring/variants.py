@@ -41,7 +41,17 @@ place of the continuous one, and each of the pad and the ballast (subplate)
 stiffness times and divided by ``track_stiffness_factor`` (2 by default: the
 in-service spread of pad stiffness with temperature and ageing and of ballast
 stiffness along a line is about a factor 2 either side, e.g. Thompson,
-*Railway Noise and Vibration*, ch. 3 and 5).
+*Railway Noise and Vibration*, ch. 3 and 5); each layer's damping (loss
+factor and viscous coefficient together) times and divided by
+``track_damping_factor`` (2 by default: published pad loss factors run from
+about 0.1 to 0.4, ibid.); and the layers' loss law itself. Eq. 2.32's constant
+loss factor has no causal counterpart: a real elastomer's storage stiffness
+rises with frequency (:func:`receptance.track.layer_dispersion`), and a
+trackform's single stiffness holds only at the frequency it was characterised
+at, which a trackform table rarely states (EN 13146-9 tests pads at low
+frequency, a test rig on a track higher). One variant per frequency in
+``track_loss_reference_hz`` (10 Hz and 1 kHz by default, the ends of the band
+the estimator inverts) takes the causal law with the table's stiffness there.
 
 Each variant is a :class:`~estimator.workflow.FieldModel` of its own whose
 transfer functions are derived once and memoised, so all of a day's runs —
@@ -157,20 +167,30 @@ def _with_trackforms(field_model, change):
 
 
 def track_variants(field_model, cfg: MonitoringConfig = MonitoringConfig()) -> list[Variant]:
-    """Discrete supports, and pad and ballast stiffness times/divided by a factor (module docstring)."""
+    """Discrete supports; pad and ballast stiffness and damping times/divided by their factors; the causal loss
+    law with the stated stiffness at each of ``track_loss_reference_hz`` (module docstring)."""
     vc = _variant_config(field_model, cfg)
     out = []
     if cfg.track_discrete_supports and vc.trackform_supports != "discrete":
         out.append(Variant("track", "discrete supports (midspan)",
                            replace(field_model, config=vc.replace(trackform_supports="discrete"), cache={})))
-    f = cfg.track_stiffness_factor
-    if f > 1:
-        for layer, keys in (("pad", ("pad_stiffness_z", "pad_stiffness_y")),
-                            ("ballast", ("subplate_stiffness_z", "subplate_stiffness_y"))):
+    layers = {"stiffness": (cfg.track_stiffness_factor,
+                            (("pad", ("pad_stiffness_z", "pad_stiffness_y")),
+                             ("ballast", ("subplate_stiffness_z", "subplate_stiffness_y")))),
+              "damping": (cfg.track_damping_factor,
+                          (("pad", ("pad_loss_factor", "pad_damping_z", "pad_damping_y")),
+                           ("ballast", ("subplate_loss_factor", "subplate_damping_z", "subplate_damping_y"))))}
+    for what, (f, groups) in layers.items():
+        if f <= 1:
+            continue
+        for layer, keys in groups:
             for k in (f, 1 / f):
                 change = (lambda tf, keys=keys, k=k: replace(tf, **{n: getattr(tf, n) * k for n in keys}))
                 fm = _with_trackforms(replace(field_model, config=vc), change)
-                out.append(Variant("track", f"{layer} stiffness x{k:.3g}", fm))
+                out.append(Variant("track", f"{layer} {what} x{k:.3g}", fm))
+    for fr in cfg.track_loss_reference_hz:
+        fm = _with_trackforms(replace(field_model, config=vc), lambda tf, fr=fr: replace(tf, loss_reference_hz=fr))
+        out.append(Variant("track", f"causal layers, stated stiffness at {fr:g} Hz", fm))
     return out
 
 
