@@ -20,7 +20,8 @@ variants (±10, ±30, ±50 mm).
 **Wheel–rail contact** and **track** (systematic): the same with the
 contact variants (wheel load between tare and crush load, rail-head radius
 range) and the track variants (discrete supports, pad and ballast stiffness
-range) of :mod:`estimator.monitoring.variants`. The estimator's contact and
+and damping ranges, the layers' causal loss law) of
+:mod:`estimator.monitoring.variants`. The estimator's contact and
 track are idealisations of one vehicle load and one continuously supported
 track; these variants span what the real ones may be.
 

@@ -183,8 +183,8 @@ def write_report(res, path, figures: dict, cfg: MonitoringConfig = MonitoringCon
           "<p>The sources, given separately and combined: the scatter between the day's runs (shrinks with more "
           "runs), the wheelset model's uncertainty (perturbed modal frequencies and damping ratios applied to the "
           "same accelerations), the accelerometers' placement (±10/30/50 mm), the wheel–rail contact (wheel load, "
-          "rail-head radius) and the track (discrete supports, pad and ballast stiffness). All but the scatter are "
-          "systematic: averaging more runs does not shrink them"
+          "rail-head radius) and the track (discrete supports, pad and ballast stiffness and damping, the layers' "
+          "causal loss law). All but the scatter are systematic: averaging more runs does not shrink them"
           + (", and the model's own error measured against a trolley on a calibration site (below)"
              if len(cal) else
              "; a trolley record of a calibration site (<code>--calibration-trolley</code>) adds the error the "
