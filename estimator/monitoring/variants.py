@@ -174,20 +174,18 @@ def track_variants(field_model, cfg: MonitoringConfig = MonitoringConfig()) -> l
     if cfg.track_discrete_supports and vc.trackform_supports != "discrete":
         out.append(Variant("track", "discrete supports (midspan)",
                            replace(field_model, config=vc.replace(trackform_supports="discrete"), cache={})))
-    layers = {"stiffness": (cfg.track_stiffness_factor,
-                            (("pad", ("pad_stiffness_z", "pad_stiffness_y")),
-                             ("ballast", ("subplate_stiffness_z", "subplate_stiffness_y")))),
-              "damping": (cfg.track_damping_factor,
-                          (("pad", ("pad_loss_factor", "pad_damping_z", "pad_damping_y")),
-                           ("ballast", ("subplate_loss_factor", "subplate_damping_z", "subplate_damping_y"))))}
-    for what, (f, groups) in layers.items():
+    scaled = (("pad stiffness", cfg.track_stiffness_factor, ("pad_stiffness_z", "pad_stiffness_y")),
+              ("ballast stiffness", cfg.track_stiffness_factor, ("subplate_stiffness_z", "subplate_stiffness_y")),
+              ("pad damping", cfg.track_damping_factor, ("pad_loss_factor", "pad_damping_z", "pad_damping_y")),
+              ("ballast damping", cfg.track_damping_factor,
+               ("subplate_loss_factor", "subplate_damping_z", "subplate_damping_y")))
+    for what, f, keys in scaled:
         if f <= 1:
             continue
-        for layer, keys in groups:
-            for k in (f, 1 / f):
-                change = (lambda tf, keys=keys, k=k: replace(tf, **{n: getattr(tf, n) * k for n in keys}))
-                fm = _with_trackforms(replace(field_model, config=vc), change)
-                out.append(Variant("track", f"{layer} {what} x{k:.3g}", fm))
+        for k in (f, 1 / f):
+            change = (lambda tf, keys=keys, k=k: replace(tf, **{n: getattr(tf, n) * k for n in keys}))
+            fm = _with_trackforms(replace(field_model, config=vc), change)
+            out.append(Variant("track", f"{what} x{k:.3g}", fm))
     for fr in cfg.track_loss_reference_hz:
         fm = _with_trackforms(replace(field_model, config=vc), lambda tf, fr=fr: replace(tf, loss_reference_hz=fr))
         out.append(Variant("track", f"causal layers, stated stiffness at {fr:g} Hz", fm))
