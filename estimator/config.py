@@ -104,10 +104,8 @@ class EstimatorConfig:
     circumference starts from it times the balise-measured odometer scale and
     is refined from the data within ``±radius_search``, default ±1 %: the
     wear difference between the encoder's wheelset and the other, up to 4 mm
-    of radius; a narrower search also makes the peak's significance — a
-    robust z-score against the search's spread — fall below
-    :data:`estimator.wheel.MIN_SIGNIFICANCE` for a clear polygon, measured on
-    the virtual line's ``wheel_polygon``).
+    of radius; the peak's significance is a z-score against the rail-only
+    null, :data:`estimator.wheel.MIN_SIGNIFICANCE`, whatever the search).
 
     Sleepers: ``sleeper_comb`` removes the sleeper-passing part, the
     parametric excitation of the discrete supports that repeats with the

@@ -11,7 +11,20 @@ sample's position within the revolution.
 tenths of a per cent; the comb needs it to ~0.01 %. :func:`circumference`
 maximises ``J(C) = Σ_m R(mC)``, the normalised autocorrelation of the
 (mask-weighted) irregularity summed at the first ``K`` multiples of ``C`` —
-the power of the synchronous average — over ``C_nom (1 ± search)``.
+the power of the synchronous average — over ``C_nom (1 ± search)``. The
+irregularity is pre-whitened first (its spectrum divided by its running
+median over half an order spacing, which a wheel's order lines do not move):
+rail roughness falls steeply with wavenumber, and unwhitened ``R`` is the
+slowly varying autocorrelation of its longest wavelengths, so a rail-only
+profile can make a broad false peak. Whitened over a band ``B`` (one order
+to ``shortest_m``), ``R`` at a lag of overlap length ``ℓ`` has the null
+variance ``1/(2Bℓ)`` and the ``K`` lags a circumference apart are
+independent; the significance is ``J`` at the peak over that null standard
+deviation — a z-score that does not depend on the search width or on the
+wheel's own sidelobes. Measured: rail-only profiles of spectral slope 0, −2
+and −3 (with gaps) stay below 4.5 over a ±1 % search; the virtual line's
+wheels, 6 dB below the rail, reach 110–265 and their fit is within 0.002 %
+of the true circumference (:data:`MIN_SIGNIFICANCE` sits between).
 
 **Comb (notch at every rotation order).** :func:`comb` estimates the
 periodic part at each revolution as the mask-weighted average of the same
@@ -42,10 +55,11 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 from scipy import fft as sfft
+from scipy.ndimage import median_filter
 
 from estimator.inversion import cubic_sample
 
-#: robust z-score (peak minus median over the median absolute deviation) a circumference peak must reach
+#: z-score against the whitened null (module docstring) a circumference peak must reach
 MIN_SIGNIFICANCE = 10.0
 #: highest wheel order reported
 MAX_ORDER = 100
@@ -69,15 +83,25 @@ class CircumferenceFit:
 
     @property
     def found(self) -> bool:
-        """The peak stands out of the search's spread by at least :data:`MIN_SIGNIFICANCE` (robust z-score)."""
+        """The peak stands out of the rail-only null by at least :data:`MIN_SIGNIFICANCE` (z-score)."""
         return self.significance >= MIN_SIGNIFICANCE
 
 
-def _lowpass(x: np.ndarray, dx: float, shortest_m: float) -> np.ndarray:
-    X = sfft.rfft(x, axis=-1)
-    k = sfft.rfftfreq(x.shape[-1], dx)
-    X[..., k > 1.0 / shortest_m] = 0
-    return sfft.irfft(X, n=x.shape[-1], axis=-1)
+def _whitened(x: np.ndarray, dx: float, order_spacing: float, shortest_m: float) -> np.ndarray:
+    """``x`` (rows along axis 1) with a flat spectrum between one order spacing and ``shortest_m`` (module docstring).
+
+    The background is the running median of the power over half an order spacing ``1/C`` (cycles per metre):
+    a wheel's lines, a few bins wide, leave the median unchanged, so the periodic part keeps its contrast.
+    """
+    n = x.shape[-1]
+    nfft = sfft.next_fast_len(n)
+    X = sfft.rfft(x, nfft, axis=-1)
+    k = sfft.rfftfreq(nfft, dx)
+    width = max(5, int(round(0.5 * order_spacing / k[1])) | 1)
+    background = np.sqrt(median_filter(np.abs(X) ** 2, size=(1, width), mode="nearest"))
+    X = X / np.maximum(background, np.finfo(float).tiny)
+    X[..., (k > 1.0 / shortest_m) | (k < 0.5 * order_spacing)] = 0
+    return sfft.irfft(X, nfft, axis=-1)[..., :n]
 
 
 def circumference(profile: np.ndarray, dx: float, nominal_m: float, *, search: float = 0.015,
@@ -100,8 +124,8 @@ def circumference(profile: np.ndarray, dx: float, nominal_m: float, *, search: f
     p = np.atleast_2d(profile)
     w = np.isfinite(p).astype(float)
     x = np.where(w > 0, p, 0.0)
-    x = _lowpass(x - (x.sum(axis=1, keepdims=True) / np.maximum(w.sum(axis=1, keepdims=True), 1)) * w,
-                 dx, max(shortest_m, 4 * dx)) * w
+    x = _whitened(x - (x.sum(axis=1, keepdims=True) / np.maximum(w.sum(axis=1, keepdims=True), 1)) * w,
+                  dx, 1.0 / nominal_m, max(shortest_m, 4 * dx)) * w
     n = x.shape[1]
     nfft = sfft.next_fast_len(2 * n)
     X, W = sfft.rfft(x, nfft, axis=1), sfft.rfft(w, nfft, axis=1)
@@ -120,9 +144,12 @@ def circumference(profile: np.ndarray, dx: float, nominal_m: float, *, search: f
     J = cubic_sample(R[None, :], lags.ravel()).reshape(lags.shape)
     J = np.nansum(J, axis=1)
     best = int(np.argmax(J))
-    med = float(np.median(J))
-    mad = float(np.median(np.abs(J - med))) * 1.4826
-    sig = (J[best] - med) / mad if mad > 0 else 0.0
+    # null spread of J: whitened noise of bandwidth B has var R(τ) = 1 / (2 B · overlap length), the K lags
+    # a circumference apart are independent
+    band = 1.0 / max(shortest_m, 4 * dx) - 0.5 / nominal_m
+    overlap = cubic_sample(den[None, :], (cands[best] * m / dx)) * dx
+    sd = math.sqrt(float(np.sum(1.0 / (2 * band * np.maximum(overlap, dx)))))
+    sig = float(J[best]) / sd
     return CircumferenceFit(float(cands[best]), float(nominal_m), float(sig), K)
 
 
