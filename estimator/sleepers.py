@@ -52,10 +52,9 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from scipy import fft as sfft
 
 from estimator.inversion import cubic_sample
-from estimator.wheel import comb, order_decomposition
+from estimator.wheel import comb, only_orders, order_decomposition
 
 __all__ = ["SleeperPassing", "sleeper_comb", "quasi_static_orders"]
 
@@ -175,10 +174,7 @@ def sleeper_comb(profile: np.ndarray, x0: float, dx: float, spacing_m: float, ra
     if not keep.any():
         return p.copy(), SleeperPassing(float(spacing_m), int(bays), orders, (0.0,) * n_rows)
     R = int(bays)
-    per = comb(on_bays, n_per, R)[1].reshape(n_rows, n_bays, n_per)
-    F = sfft.rfft(np.where(np.isfinite(per), per, 0.0), axis=2)
-    F[~np.broadcast_to(keep[:, None, :], F.shape)] = 0.0
-    per = sfft.irfft(F, n_per, axis=2).reshape(n_rows, -1)
+    per = only_orders(comb(on_bays, n_per, R)[1].reshape(n_rows, n_bays, n_per), keep[:, None, :]).reshape(n_rows, -1)
     part = cubic_sample(per, (x0 + np.arange(m) * dx - xb0) / step)
     part = np.where(np.isfinite(part), part, 0.0)
     rail = p - part

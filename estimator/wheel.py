@@ -63,8 +63,8 @@ MIN_SIGNIFICANCE = 10.0
 #: highest wheel order reported
 MAX_ORDER = 100
 
-__all__ = ["circumference", "comb", "comb_response", "order_decomposition", "wheel_roughness", "WheelRoughness",
-           "CircumferenceFit"]
+__all__ = ["circumference", "comb", "comb_response", "order_decomposition", "only_orders", "wheel_roughness",
+           "WheelRoughness", "CircumferenceFit"]
 
 
 @dataclass(frozen=True)
@@ -127,10 +127,11 @@ def circumference(profile: np.ndarray, dx: float, nominal_m: float, *, search: f
         Shortest wavelength kept for the autocorrelation [m].
     """
     p = np.atleast_2d(profile)
+    shortest = max(shortest_m, 4 * dx)  # the grid carries 4 samples per wavelength at least
     w = np.isfinite(p).astype(float)
     x = np.where(w > 0, p, 0.0)
     x = _whitened(x - (x.sum(axis=1, keepdims=True) / np.maximum(w.sum(axis=1, keepdims=True), 1)) * w,
-                  dx, 1.0 / nominal_m, max(shortest_m, 4 * dx)) * w
+                  dx, 1.0 / nominal_m, shortest) * w
     n = x.shape[1]
     nfft = sfft.next_fast_len(2 * n)
     X, W = sfft.rfft(x, nfft, axis=1), sfft.rfft(w, nfft, axis=1)
@@ -141,7 +142,7 @@ def circumference(profile: np.ndarray, dx: float, nominal_m: float, *, search: f
         R = np.where(den > 0.2 * den[0], num / den, 0.0) / max(var, np.finfo(float).tiny)
     valid_len = w.any(axis=0).sum() * dx
     K = int(max(1, min(max_multiples, math.floor(0.5 * valid_len / nominal_m))))
-    step = 0.1 / (K * nominal_m / max(shortest_m, 4 * dx))  # a tenth of the peak width of the highest order kept
+    step = 0.1 / (K * nominal_m / shortest)  # a tenth of the peak width of the highest order kept
     rel = np.arange(-search, search + step / 2, step)
     cands = nominal_m * (1 + rel)
     m = np.arange(1, K + 1)
@@ -151,7 +152,7 @@ def circumference(profile: np.ndarray, dx: float, nominal_m: float, *, search: f
     best = int(np.argmax(J))
     # null spread of J: whitened noise of bandwidth B has var R(τ) = 1 / (2 B · overlap length), the K lags
     # a circumference apart are independent
-    band = 1.0 / max(shortest_m, 4 * dx) - 0.5 / nominal_m
+    band = 1.0 / shortest - 0.5 / nominal_m
     overlap = cubic_sample(den[None, :], (cands[best] * m / dx)) * dx
     sd = math.sqrt(float(np.sum(1.0 / (2 * band * np.maximum(overlap, dx)))))
     sig = float(J[best]) / sd
@@ -357,6 +358,18 @@ def order_decomposition(periods: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     F = sfft.rfft(periods - periods.mean(axis=1, keepdims=True), axis=1) * 2 / N
     mean = F.mean(axis=0)
     return mean, np.sqrt(np.mean(np.abs(F - mean) ** 2, axis=0) / n)
+
+
+def only_orders(periods: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """Whole periods (``(..., n, N)``: revolutions, sleeper bays) with every order but the kept ones removed.
+
+    ``keep`` is a boolean mask over the orders ``0 .. N // 2``, broadcastable to ``(..., 1, N // 2 + 1)``;
+    NaN samples count as 0.
+    """
+    N = periods.shape[-1]
+    F = sfft.rfft(np.where(np.isfinite(periods), periods, 0.0), axis=-1)
+    F[~np.broadcast_to(keep, F.shape)] = 0.0
+    return sfft.irfft(F, N, axis=-1)
 
 
 def wheel_roughness(profile: np.ndarray, n_per_rev: int, sides: tuple[str, ...], circumference_m: float,

@@ -220,7 +220,7 @@ def comb_channels(acc: np.ndarray, chainage: np.ndarray, circumference_m: float,
         sample's angle. Samples where the wheel does not advance (standstill, reversing) keep their value (the
         speed gate drops them).
     """
-    from estimator.wheel import comb
+    from estimator.wheel import comb, only_orders
 
     acc = np.asarray(acc, float)
     u = np.asarray(chainage, float)
@@ -249,12 +249,11 @@ def comb_channels(acc: np.ndarray, chainage: np.ndarray, circumference_m: float,
     periodic = np.nan_to_num(X - comb(X, n_per_rev, revolutions)[0])
     if orders is not None:
         n_rev = grid.size // n_per_rev
-        F = np.fft.rfft(periodic[:, :n_rev * n_per_rev].reshape(len(up), n_rev, n_per_rev), axis=2)
-        keep = np.zeros(F.shape[2], bool)
-        keep[[k for k in orders if 0 < k < F.shape[2]]] = True
-        F[:, :, ~keep] = 0.0
-        periodic = np.concatenate([np.fft.irfft(F, n_per_rev, axis=2).reshape(len(up), -1),
-                                   np.zeros((len(up), grid.size - n_rev * n_per_rev))], axis=1)
+        keep = np.zeros(n_per_rev // 2 + 1, bool)
+        keep[[k for k in orders if 0 < k < keep.size]] = True
+        kept = only_orders(periodic[:, :n_rev * n_per_rev].reshape(len(up), n_rev, n_per_rev), keep)
+        periodic = np.concatenate([kept.reshape(len(up), -1), np.zeros((len(up), grid.size - n_rev * n_per_rev))],
+                                  axis=1)
     out = acc.copy()
     fwd = np.concatenate([[True], np.diff(u) > 0]) & (u >= np.maximum.accumulate(u))
     for i in range(acc.shape[0]):
