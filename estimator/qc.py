@@ -134,6 +134,7 @@ def check_run(run: Run, track: OdometryTrack, config: EstimatorConfig = Estimato
     merge = int(round(0.1 * fs))
     n_ch, n = run.acceleration.shape
     masked = np.zeros((n_ch, n), bool)
+    saturated = np.zeros((n_ch, n), bool)
     events: list[QCEvent] = list(run.rejected)
     for i, name in enumerate(run.names):
         x = run.acceleration[i]
@@ -149,6 +150,7 @@ def check_run(run: Run, track: OdometryTrack, config: EstimatorConfig = Estimato
             if flag.any():
                 events.extend(_events(kind, name, flag, t, chain, reason, merge))
         masked[i] = _grow(nan | flat | clip, margin)
+        saturated[i] = masked[i] & ~_grow(nan | flat, margin)
     # whole-run findings
     reverse = (speed < -config.standstill_m_s)
     dchain = np.gradient(chain) * track.travel_sign if n > 1 else np.zeros(n)
@@ -168,10 +170,11 @@ def check_run(run: Run, track: OdometryTrack, config: EstimatorConfig = Estimato
     events.extend(e for e in track.events if e.kind in ("odometry_jump", "odometry_inconsistent"))
     run_mask = still | slow | reverse | untrusted
     masked |= run_mask[None, :]
+    saturated &= ~run_mask[None, :]
     for e in events:
         if e.action in ("masked", "rejected"):
             log.warning("%s: %s", run.source, e.describe())
-    mask = QCMask(masked, tuple(events))
+    mask = QCMask(masked, tuple(events), saturated)
     share = mask.share(run.names)
     return run.with_mask(mask, f"quality control: {len(events)} finding(s); masked share {100 * share['run']:.1f} % "
                                f"of the run (speed gate {config.speed_gate_m_s:g} m/s)")

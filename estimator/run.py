@@ -151,14 +151,30 @@ class QCEvent:
 
 @dataclass(frozen=True, eq=False)
 class QCMask:
-    """Masked samples per acceleration channel (True = excluded) and the findings that masked them."""
+    """Masked samples per acceleration channel (True = excluded) and the findings that masked them.
+
+    ``saturated`` marks the masked samples whose only finding is the channel's clipping: their recorded value is
+    the front end's full scale, a bound on the true acceleration rather than a missing one. They never enter the
+    channel's own wheelset's inversion; the other wheelset's rail-coupling term may use them
+    (:func:`estimator.workflow.estimate_run`): without them that wheelset loses every stretch around the clips, or
+    is inverted without the coupling at all.
+    """
 
     masked: np.ndarray
     events: tuple[QCEvent, ...] = ()
+    saturated: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "masked", _frozen(self.masked, bool))
         object.__setattr__(self, "events", tuple(self.events))
+        sat = np.zeros_like(self.masked) if self.saturated is None else np.asarray(self.saturated, bool)
+        if sat.shape != self.masked.shape:
+            raise ValueError(f"saturated samples of shape {sat.shape} for a mask of shape {self.masked.shape}")
+        object.__setattr__(self, "saturated", _frozen(sat & self.masked, bool))
+
+    def coupling_valid(self, rows) -> np.ndarray:
+        """Samples at which the channels ``rows`` are valid or only saturated (see the class docstring)."""
+        return ~(self.masked[rows] & ~self.saturated[rows]).any(axis=0)
 
     def share(self, channels: tuple[str, ...]) -> dict[str, float]:
         """Masked share per channel and for the run (samples masked in any channel)."""

@@ -126,6 +126,14 @@ def test_dropouts_clipping_standstill_and_reversing_are_masked_with_reasons(faul
     assert "dropout_nan [ACC_W1L_Z]" in caplog.text
     # nothing interpolated over: the raw NaNs stay NaN in the run
     assert np.isnan(run.acceleration[i, (t > 10.1) & (t < 10.4)]).all()
+    # saturated: exactly the clipped channel's masked samples outside the run-wide masks; a dropout is not
+    j = run.index("ACC_W1R_Y")
+    sat = run.mask.saturated
+    assert sat[j].any() and not np.delete(sat, j, axis=0).any()
+    assert not (sat[j] & ~run.mask.masked[j]).any()
+    assert not sat[j, (t >= 34.0) & (t < 35.0)].any()  # reversing masks every channel whatever it recorded
+    assert run.mask.coupling_valid([j])[sat[j]].all()
+    assert not run.mask.coupling_valid([i, j])[(t > 10.1) & (t < 10.4)].any()
 
 
 def test_the_estimate_reports_the_masks_and_skips_only_what_it_must(faulty):
