@@ -395,6 +395,17 @@ def test_the_rail_coupling_of_the_two_wheelsets_is_inverted(forward_estimate, mo
     assert any("rail coupling" in s for s in est.processing)
 
 
+def _clipping(channel: str, quantile: float):
+    """A fault (:func:`make_run`): ``channel`` saturates at the ``quantile`` of its magnitude."""
+
+    def fault(ch):
+        t, v, u = ch[channel]
+        lim = np.quantile(np.abs(v), quantile)
+        ch[channel] = (t, np.clip(v, -lim, lim), u)
+
+    return fault
+
+
 def test_a_clipped_channel_of_one_wheelset_keeps_the_other_wheelsets_rail_coupling(tmp_path, forward_estimate, model):
     """The trailing wheelset's ACC_W2L_Z clips on its 0.5 % largest samples, every second or so. Masked for wheelset 2
     itself, those samples left few stretches valid on both wheelsets that outlast the inverse filter's edges:
@@ -406,13 +417,7 @@ def test_a_clipped_channel_of_one_wheelset_keeps_the_other_wheelsets_rail_coupli
     from estimator.reference import compare_bands
 
     sr, est, fm = forward_estimate
-
-    def clip(ch):
-        t, v, u = ch["ACC_W2L_Z"]
-        lim = np.quantile(np.abs(v), 0.995)
-        ch["ACC_W2L_Z"] = (t, np.clip(v, -lim, lim), u)
-
-    clipped = make_run(tmp_path, model, duration_s=45, name="fwd_clipped", faults=clip)
+    clipped = make_run(tmp_path, model, duration_s=45, name="fwd_clipped", faults=_clipping("ACC_W2L_Z", 0.995))
     out = estimate_run(clipped.path, fm)
     assert (out.qc["kind"] == "clipping").sum() > 20 and set(out.qc.loc[out.qc["kind"] == "clipping", "channel"]) == \
         {"ACC_W2L_Z"}
@@ -437,13 +442,7 @@ def test_a_channel_clipping_all_along_feeds_no_coupling(tmp_path, forward_estima
     from estimator import estimate_run
 
     _, _, fm = forward_estimate
-
-    def clip(ch):
-        t, v, u = ch["ACC_W2L_Z"]
-        lim = np.quantile(np.abs(v), 0.8)
-        ch["ACC_W2L_Z"] = (t, np.clip(v, -lim, lim), u)
-
-    run = make_run(tmp_path, model, duration_s=45, name="fwd_clipped_all", faults=clip)
+    run = make_run(tmp_path, model, duration_s=45, name="fwd_clipped_all", faults=_clipping("ACC_W2L_Z", 0.8))
     # wheelset 2 is masked nearly everywhere: no wheelbase can be measured, it is given
     out = estimate_run(run.path, replace(fm, config=fm.config.replace(wheelbase_m=run.wheelbase)))
     assert any("leaves out wheelset 2's clipped samples (ACC_W2L_Z" in s for s in out.processing)
