@@ -602,7 +602,7 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
     # ---- the rail couples the bogie's two wheelsets: each inversion again with the other's contact forces
     if coupling:
         t0 = time.perf_counter()
-        coupled = []
+        coupled, holes = [], []
         for w, wo in ((1, 2), (2, 1)):
             other = {kind: sub for kind, sub, _, _ in plans_by_w.get(wo, [])}
             for kind, sub, classes, transfers in plans_by_w.get(w, []):
@@ -621,6 +621,9 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
                     if ti.valid_time > 0:
                         tis[(w, kind)] = ti
                         coupled.append(f"{w}/{kind}")
+                        lost = float(np.count_nonzero(valid & ~valid_o)) / fs
+                        if lost > 0:
+                            holes.append(f"{w}/{kind} {lost:.1f} s")
                         continue
                 if deferred:
                     # no stretch valid on both wheelsets: this wheelset alone, as without the coupling
@@ -632,6 +635,11 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
                         skipped.append(f"wheelset {w}, {kind}: no valid stretch long enough after quality control")
         steps.append(f"rail coupling of the two wheelsets {wb:.3f} m apart (Timoshenko rail transfer receptance) "
                      f"added for {', '.join(coupled) or 'none'}")
+        if holes:
+            _say_once(run, steps, f"coupled estimates leave out their own valid samples where the other wheelset's "
+                                  f"channels are masked, each hole widened by the inverse filter's edges (the "
+                                  f"coupling needs both; holes in the profile, no uncoupled patch): "
+                                  f"{', '.join(holes)}")
         alone = [f"{w}/{kind}" for (w, kind) in tis if f"{w}/{kind}" not in coupled]
         if alone:
             _say_once(run, steps, f"{', '.join(alone)} inverted without the rail coupling (no stretch long enough "
