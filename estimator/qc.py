@@ -22,7 +22,8 @@ For the whole run (every channel):
 Each finding is a :class:`~estimator.run.QCEvent` (kind, channel, time and
 chainage range, reason, action) logged at WARNING; masked samples are never
 interpolated over (the inversion splits the run at them). Channels rejected
-while reading (missing, wrong rate) are carried into the events.
+while reading (missing, wrong rate) and the samples the recording lost (time-stamp gaps, NaN in the run and
+masked as dropouts) are carried into the events.
 """
 
 from __future__ import annotations
@@ -139,10 +140,15 @@ def check_run(run: Run, track: OdometryTrack, config: EstimatorConfig = Estimato
     for i, name in enumerate(run.names):
         x = run.acceleration[i]
         nan = dropouts(x)
+        # samples the logger lost are NaN too; the reading already reported them as time gaps
+        lost = np.zeros(n, bool)
+        for e in run.rejected:
+            if e.kind == "time_gap" and e.channel == name:
+                lost |= (t >= e.t_start - 0.5 / fs) & (t <= e.t_end + 0.5 / fs)
         flat = flat_segments(x, max(2, int(round(config.flat_min_s * fs))))
         clip, level = clipped(x, config.clip_min_samples)
         for flag, kind, reason in (
-                (nan, "dropout_nan", "no data (NaN) in the recording"),
+                (nan & ~lost, "dropout_nan", "no data (NaN) in the recording"),
                 (flat, "dropout_flat", f"value held constant for >= {config.flat_min_s * 1e3:g} ms (front end "
                                        "holding its last sample)"),
                 (clip & ~flat, "clipping", f"channel saturated at {level:.4g} m/s^2 (>= {config.clip_min_samples} "
@@ -167,7 +173,7 @@ def check_run(run: Run, track: OdometryTrack, config: EstimatorConfig = Estimato
     ):
         if flag.any():
             events.extend(_events(kind, "*", flag, t, chain, reason, merge))
-    events.extend(e for e in track.events if e.kind in ("odometry_jump", "odometry_inconsistent"))
+    events.extend(e for e in track.events if e.kind in ("odometry_jump", "odometry_inconsistent", "odometry_gap"))
     run_mask = still | slow | reverse | untrusted
     masked |= run_mask[None, :]
     saturated &= ~run_mask[None, :]

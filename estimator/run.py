@@ -96,6 +96,10 @@ class Odometry:
         One event per balise passage: its time [s] and the balise's reference chainage [m].
     names : dict
         Channel name of ``speed``, ``position`` and ``balise`` in the file.
+    gaps : tuple of (float, float, str)
+        Stretches ``(t_from, t_to, channel)`` the speed or position channel does not cover (its time stamps jump
+        by more than :data:`estimator.io.assemble.ODOMETRY_GAP_FACTOR` intervals): the position there is
+        interpolated, :func:`estimator.spatial.odometry_track` judges whether that can be trusted.
     """
 
     t: np.ndarray
@@ -104,6 +108,7 @@ class Odometry:
     balise_t: np.ndarray
     balise_chainage: np.ndarray
     names: Mapping[str, str] = field(default_factory=dict)
+    gaps: tuple[tuple[float, float, str], ...] = ()
 
     def __post_init__(self) -> None:
         for name in ("t", "speed", "position", "balise_t", "balise_chainage"):
@@ -115,6 +120,7 @@ class Odometry:
         if self.balise_t.shape != self.balise_chainage.shape:
             raise ChannelError("odometry: balise times and chainages must have one entry per passage")
         object.__setattr__(self, "names", dict(self.names))
+        object.__setattr__(self, "gaps", tuple((float(a), float(b), str(c)) for a, b, c in self.gaps))
 
 
 @dataclass(frozen=True)
@@ -214,7 +220,9 @@ class Run:
     odometry : Odometry
     sensitivity_applied : bool
     rejected : tuple of QCEvent
-        Channels of the sensor table that could not be used (missing, wrong rate).
+        Findings of the reading: channels of the sensor table that could not be used (missing, wrong rate;
+        action ``rejected``) and samples the recording lost (``time_gap``, action ``masked``: NaN in
+        ``acceleration``).
     mask : QCMask or None
         Set by :func:`estimator.qc.check_run`.
     processing : tuple of str

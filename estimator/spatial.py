@@ -18,7 +18,11 @@ chainage:
 3. a stretch whose implied scale error exceeds ``max_scale_error`` (an
    odometry fault, not wheel wear) is not trusted: it is **masked** and
    logged (chainages, the implied error), and kept at scale 1; so is a
-   stretch holding a position jump that no balise event explains.
+   stretch holding a position jump that no balise event explains;
+4. a stretch the speed or position channel does not cover (its time stamps
+   jump: the logger lost samples) is interpolated across when it is shorter
+   than :data:`MAX_ODOMETRY_GAP_S` (reported, ``corrected``) and masked
+   otherwise: the chainage there is not measured.
 
 The result also gives the signed speed along the run's direction of travel
 (negative = reversing), from the speed channel times the stretch scale.
@@ -51,6 +55,10 @@ log = logging.getLogger("estimator")
 
 #: a position step that the speed does not explain by more than this (plus 5 %) is a jump [m]
 JUMP_TOLERANCE_M = 0.05
+#: longest stretch without speed or position samples over which the chainage is interpolated [s]: a metro's
+#: acceleration (braking up to about 1.5 m/s^2) bends the position by a T^2 / 8 from the straight line across a
+#: gap of T seconds, 5 mm at 0.16 s, half the alignment's 10 mm budget; a longer gap is masked
+MAX_ODOMETRY_GAP_S = 0.16
 
 
 @dataclass(frozen=True, eq=False)
@@ -133,8 +141,12 @@ def odometry_track(odo: Odometry, travel_sign: int, *, max_scale_error: float = 
     d = pos.astype(float).copy()
     jumps = []
     step = np.diff(pos)
-    expected = travel_sign * np.abs(odo.speed[:-1]) * np.diff(t)
-    excess = np.abs(step - expected) > JUMP_TOLERANCE_M + 0.05 * np.abs(expected)
+    # the speed at either end of a step bounds the distance travelled in it (whichever end a logger's odometer
+    # integrates from, and across a gap in the channels); the trapezoid is the expected step
+    v0, v1, dt = np.abs(odo.speed[:-1]), np.abs(odo.speed[1:]), np.diff(t)
+    expected = travel_sign * 0.5 * (v0 + v1) * dt
+    along, lo, hi = travel_sign * step, np.minimum(v0, v1) * dt, np.maximum(v0, v1) * dt
+    excess = np.maximum(lo - along, along - hi) > JUMP_TOLERANCE_M + 0.05 * hi
     reset_idx = {j for j, _, _ in resets}
     for j, tb, cb in resets:
         if j == 0:
@@ -163,6 +175,19 @@ def odometry_track(odo: Odometry, travel_sign: int, *, max_scale_error: float = 
                      key=lambda a: a[2])
     events: list[QCEvent] = []
     untrusted: list[tuple[float, float]] = []
+    for g0, g1, name in odo.gaps:
+        c = np.interp([g0, g1], t, pos)
+        if g1 - g0 > MAX_ODOMETRY_GAP_S:
+            events.append(QCEvent("odometry_gap", "*", g0, g1,
+                                  f"{name}: no sample for {g1 - g0:.3f} s; the chainage there is not "
+                                  f"measured (longer than {MAX_ODOMETRY_GAP_S:g} s)", "masked",
+                                  float(c.min()), float(c.max())))
+            untrusted.append((g0, g1))
+        else:
+            events.append(QCEvent("odometry_gap", "*", g0, g1,
+                                  f"{name}: no sample for {g1 - g0:.3f} s; interpolated across (a "
+                                  f"gap of at most {MAX_ODOMETRY_GAP_S:g} s bends the position by < 5 mm)",
+                                  "corrected", float(c.min()), float(c.max())))
     for a, b in inconsistent:
         events.append(QCEvent("odometry_inconsistent", "*", float(t[a]), float(t[b]),
                               f"speed and position disagree over {b - a} odometry samples (max "

@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from estimator import (ChannelError, OdometryError, RunFileError, SensorTableError, UnknownFormatError, read_run,
+from estimator import (ChannelError, OdometryError, RunFileError, SensorTableError, UnknownFormatError, check_run, read_run,
                        read_sensors)
 from estimator.io import formats, read_line, read_trolley
 from estimator.io.registry import RawChannel
@@ -172,3 +172,143 @@ def test_line_and_trolley_files(tmp_path):
                   "roughness_um": [1.0, 2.0, 3.0, 4.0]}).to_csv(tmp_path / "trolley.csv", index=False)
     tr = read_trolley(tmp_path / "trolley.csv")
     assert tr["roughness_m"].tolist() == pytest.approx([1e-6, 2e-6, 3e-6, 4e-6]) and set(tr["rail"]) == {"L", "R"}
+
+
+# ------------------------------------------------------------------ what real data loggers write
+def _without(ch, name, i0, i1):
+    t, v, u = ch[name]
+    keep = np.r_[0:i0, i1:t.size]
+    ch[name] = (t[keep], v[keep], u)
+
+
+@pytest.mark.parametrize("fmt", ["mdf4", "parquet"])
+def test_samples_the_logger_lost_are_nan_masked_and_reported_not_interpolated(tmp_path, table, fmt, caplog):
+    """A buffer overrun: ACC_W1L_Z loses samples 1000-1049 (1.000-1.049 s; the odometer reads 110.0-110.49 m)."""
+    from estimator.spatial import odometry_track
+
+    ch = _channels()
+    _without(ch, "ACC_W1L_Z", 1000, 1050)
+    p = tmp_path / f"gap.{dict(mdf4='mf4', parquet='parquet')[fmt]}"
+    if fmt == "mdf4":
+        write_mdf4(p, ch, HEADER)
+    else:
+        write_run_table({k: RawChannel(k, *v) for k, v in ch.items()}, HEADER, p, fmt)
+    run = read_run(p, table)
+    assert run.n_samples == 3000 and run.fs == pytest.approx(1000.0)
+    i = run.index("ACC_W1L_Z")
+    assert np.isnan(run.acceleration[i, 1000:1050]).all()
+    assert np.isfinite(run.acceleration[i, :1000]).all() and np.isfinite(run.acceleration[i, 1050:]).all()
+    # the samples around the gap are where the file put them, not shifted by the lost ones
+    np.testing.assert_allclose(run.acceleration[i, 1050:], ch["ACC_W1L_Z"][1][1000:] * G, rtol=1e-12)
+    (ev,) = [e for e in run.rejected if e.kind == "time_gap"]
+    assert ev.channel == "ACC_W1L_Z" and ev.action == "masked" and "50 sample(s) lost" in ev.reason
+    assert (ev.t_start, ev.t_end) == (pytest.approx(1.000), pytest.approx(1.049))
+    assert (ev.chainage_from, ev.chainage_to) == (pytest.approx(110.0), pytest.approx(110.49))
+    assert "time_gap [ACC_W1L_Z]" in caplog.text and "1 time-stamp gap" in run.processing[0]
+    # quality control masks them and reports them once, as the gap (not again as a NaN dropout)
+    checked = check_run(run, odometry_track(run.odometry, +1))
+    assert checked.mask.masked[i, 1000:1050].all() and not checked.mask.masked[i, :900].any()
+    kinds = [e.kind for e in checked.mask.events if e.channel == "ACC_W1L_Z"]
+    assert kinds == ["time_gap"]
+
+
+def test_a_channel_resuming_off_its_sampling_grid_is_an_error(tmp_path, table):
+    ch = _channels()
+    t, v, u = ch["ACC_W2L_Z"]
+    t = t.copy()
+    t[1500:] += 0.0004  # resumes 0.4 sampling intervals late: no longer sampled with the other channels
+    ch["ACC_W2L_Z"] = (np.r_[t[:1000], t[1500:]], np.r_[v[:1000], v[1500:]], u)
+    p = tmp_path / "offgrid.parquet"
+    write_run_table({k: RawChannel(k, *c) for k, c in ch.items()}, HEADER, p)
+    with pytest.raises(ChannelError, match="'ACC_W2L_Z' resumes 501.400 sampling intervals after a gap, off its"):
+        read_run(p, table)
+
+
+@pytest.mark.parametrize("lost, action", [(5, "corrected"), (60, "masked")])
+def test_a_stretch_without_odometry_is_interpolated_when_short_and_masked_when_long(tmp_path, table, lost, action):
+    """Speed and position (100 Hz) lose ``lost`` samples from 1.5 s: 0.05 s is bridged (the position's bend under
+    a metro's braking stays < 5 mm), 0.6 s is not measured and masked."""
+    from estimator.spatial import MAX_ODOMETRY_GAP_S, odometry_track
+
+    ch = _channels()
+    for name in ("SPEED", "POSITION"):
+        _without(ch, name, 150, 150 + lost)
+    p = tmp_path / "odogap.parquet"
+    write_run_table({k: RawChannel(k, *c) for k, c in ch.items()}, HEADER, p)
+    run = read_run(p, table)
+    ((g0, g1, names),) = run.odometry.gaps
+    assert names == "SPEED, POSITION"
+    assert (g0, g1) == (pytest.approx(1.49), pytest.approx(1.5 + lost / 100))
+    tr = odometry_track(run.odometry, +1)
+    (ev,) = [e for e in tr.events if e.kind == "odometry_gap"]
+    assert ev.action == action and (g1 - g0 > MAX_ODOMETRY_GAP_S) == (action == "masked")
+    assert ev.chainage_from == pytest.approx(114.9) and ev.chainage_to == pytest.approx(115.0 + lost / 10)
+    assert bool(tr.untrusted) == (action == "masked")
+    np.testing.assert_allclose(tr.chainage_at(np.array([1.52])), 115.2, atol=1e-9)  # constant speed: exact
+    checked = check_run(run, tr)
+    inside = (run.t > g0) & (run.t < g1)
+    if action == "masked":
+        assert checked.mask.masked[:, inside].all()
+    else:
+        assert not checked.mask.masked[:, inside].any()
+    assert not checked.mask.masked[:, run.t < g0 - 0.1].any()
+
+
+def _mdf_with_two_groups(path, ch, copy):
+    """All channels as :func:`write_mdf4` writes them, plus ``copy`` = (name, t, values, unit) in a group of its own."""
+    from asammdf import MDF, Signal
+
+    write_mdf4(path, ch, HEADER)
+    mdf = MDF(str(path))
+    name, t, v, unit = copy
+    mdf.append([Signal(np.asarray(v, float), np.asarray(t, float), name=name, unit=unit),
+                Signal(np.zeros(t.size), np.asarray(t, float), name="STATUS", unit="")])
+    out = path.with_name("two_" + path.name)
+    mdf.save(str(out), overwrite=True)
+    mdf.close()
+    return out
+
+
+def test_a_name_in_two_channel_groups_is_kept_when_equal_and_must_be_chosen_when_not(tmp_path, table):
+    ch = _channels()
+    t, v, u = ch["ACC_W1R_Z"]
+    same = _mdf_with_two_groups(tmp_path / "same.mf4", ch, ("ACC_W1R_Z", t[::1], v, u))
+    # a logger writing one signal in two groups: one channel, the same data
+    np.testing.assert_array_equal(read_run(same, table).acceleration[read_run(same, table).index("ACC_W1R_Z")],
+                                  v * G)
+    # two different signals of one name (here the second one sampled at 500 Hz): never picked silently
+    other = _mdf_with_two_groups(tmp_path / "other.mf4", ch, ("ACC_W1R_Z", t[::2], -v[::2], u))
+    with pytest.raises(ChannelError, match=r"'ACC_W1R_Z' of the sensor table cannot be used: channel groups "
+                                           r"\[\d+, \d+\] .*name one of \['ACC_W1R_Z@\d+', 'ACC_W1R_Z@\d+'\]"):
+        read_run(other, table)
+    # the sensor table names the copy it means
+    from estimator.io.registry import read_raw
+
+    raw, _ = read_raw(other)
+    qualified = sorted(n for n in raw.channels if n.startswith("ACC_W1R_Z@"))
+    full_rate = [n for n in qualified if raw.channels[n].t.size == t.size]
+    s = pd.read_csv(table)
+    s.loc[s["name"] == "ACC_W1R_Z", "name"] = full_rate[0]
+    chosen = tmp_path / "chosen.csv"
+    s.to_csv(chosen, index=False)
+    run = read_run(other, chosen)
+    np.testing.assert_array_equal(run.acceleration[run.index(full_rate[0])], v * G)
+
+
+@pytest.mark.parametrize("file_unit, table_unit, factor", [
+    ("m s-2", "m/s^2", 1.0), ("m·s⁻²", "m/s²", 1.0), ("m/s**2", "m/s^2", 1.0), ("G", "g", G), ("gn", "g", G),
+    ("mm/s^2", "mm/s²", 1e-3),
+])
+def test_unit_spellings_of_data_loggers_are_one_unit(tmp_path, file_unit, table_unit, factor):
+    """A unit a logger spells its own way is the table's unit (and its SI factor), not a contradiction."""
+    ch = _channels()
+    ch = {k: (t, v, file_unit) if k.startswith("ACC") else (t, v, u) for k, (t, v, u) in ch.items()}
+    s = sensor_table()
+    acc = s["quantity"] == "acceleration"
+    s.loc[acc, "unit"], s.loc[acc, "sensitivity"] = table_unit, factor
+    table = tmp_path / "sensors.csv"
+    s.to_csv(table, index=False)
+    p = tmp_path / "run.mf4"
+    write_mdf4(p, ch, HEADER)
+    run = read_run(p, table)
+    np.testing.assert_allclose(run.acceleration[0], ch["ACC_W1L_Z"][1] * factor, rtol=1e-12)

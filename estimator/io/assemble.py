@@ -6,10 +6,20 @@ Rules (field contract):
   the balise channel is optional (without it no reset is known);
 * every acceleration channel of the sensor table is looked up by name; a
   missing one is **rejected** and logged (the wheelset it belongs to is
-  processed with what remains, or not at all), never silently replaced;
+  processed with what remains, or not at all), never silently replaced; a
+  name the file holds but not as one usable channel (several channel groups
+  with different data under it, or not numbers) is an error naming why;
 * all acceleration channels must share one sampling rate (the most common
   one, or ``fs`` when given): a channel at another rate is rejected and
-  logged; samples must be evenly spaced (ChannelError otherwise);
+  logged; samples must lie on a regular grid (ChannelError otherwise);
+* samples the data logger lost (a buffer overrun: the time stamps jump by a
+  whole number of sampling intervals and the grid goes on in phase) are NaN
+  in the run, masked by quality control and reported as a ``time_gap``
+  finding naming the channel, the time, the odometer's chainage and the
+  samples lost — never interpolated over. A jump off the grid (the channel
+  restarted out of phase with the others) is an error;
+* speed and position need increasing time stamps; a stretch they do not
+  cover is found by :func:`estimator.spatial.odometry_track`;
 * a file unit that contradicts the sensor table's unit is an error
   (ChannelError naming both);
 * the sensitivities of speed, position and balise channels are applied while
@@ -31,30 +41,81 @@ from estimator.io.registry import RawChannel, RawRecording
 from estimator.io.sensors import normalise_unit
 from estimator.run import DIRECTIONS, ORIENTATIONS, Odometry, QCEvent, Run, RunHeader
 
-__all__ = ["assemble_run", "channel_rate"]
+__all__ = ["assemble_run", "sample_grid"]
 
 log = logging.getLogger("estimator")
 
 #: relative tolerance on a channel's sampling interval (jitter of the time stamps)
 RATE_RTOL = 1e-3
+#: a channel resuming after lost samples must land this close to its sampling grid [sampling intervals]; further
+#: off it is no longer sampled simultaneously with the other channels
+GRID_ATOL = 0.01
+#: an odometry channel's time stamps jumping by more than this many median intervals leave a gap (a balise
+#: channel is an event list and has none)
+ODOMETRY_GAP_FACTOR = 1.5
 #: most samples per channel (about 12 h at 1 kHz)
 MAX_SAMPLES = 50_000_000
 
 
-def channel_rate(ch: RawChannel, source: str) -> float:
-    """Sampling rate of an evenly sampled channel [Hz] (ChannelError if uneven or too short)."""
+def sample_grid(ch: RawChannel, source: str) -> tuple[float, np.ndarray]:
+    """Sampling rate [Hz] of a channel and each sample's index on its regular grid (module docstring).
+
+    The interval is the median of the time-stamp differences. A difference of one interval (within
+    :data:`RATE_RTOL`) is the next sample; a difference of ``k >= 2`` intervals landing within
+    :data:`GRID_ATOL` of the grid is ``k - 1`` lost samples. Anything else is a ChannelError naming the
+    channel and the time.
+    """
     t = ch.t
     if t.size < 2:
         raise ChannelError(f"{source}: channel {ch.name!r} has {t.size} sample(s); a signal needs at least 2")
     d = np.diff(t)
     dt = float(np.median(d))
-    if not dt > 0:
-        raise ChannelError(f"{source}: channel {ch.name!r} has non-increasing time stamps")
-    if np.max(np.abs(d - dt)) > max(RATE_RTOL * dt, 1e-9):
-        k = int(np.argmax(np.abs(d - dt)))
-        raise ChannelError(f"{source}: channel {ch.name!r} is not evenly sampled (interval {d[k]:.6g} s at "
-                           f"t = {t[k]:.3f} s, median {dt:.6g} s); the estimator needs a constant sampling rate")
-    return 1.0 / dt
+    if not dt > 0 or not np.all(d > 0):
+        k = int(np.argmax(d <= 0)) if dt > 0 else 0
+        raise ChannelError(f"{source}: channel {ch.name!r} has non-increasing time stamps (at t = {t[k]:.6g} s)")
+    steps = np.rint(d / dt)
+    tol = np.where(steps == 1, max(RATE_RTOL * dt, 1e-9), GRID_ATOL * dt)
+    off = np.abs(d - steps * dt) - tol
+    if np.any(off > 0):
+        k = int(np.argmax(off))
+        what = ("is not evenly sampled" if steps[k] == 1 else
+                f"resumes {d[k] / dt:.3f} sampling intervals after a gap, off its sampling grid")
+        raise ChannelError(f"{source}: channel {ch.name!r} {what} (interval {d[k]:.6g} s at t = {t[k]:.3f} s, "
+                           f"median {dt:.6g} s); the estimator needs a constant sampling rate")
+    return 1.0 / dt, np.concatenate([[0], np.cumsum(steps)]).astype(np.int64)
+
+
+def _on_grid(ch: RawChannel, index: np.ndarray) -> np.ndarray:
+    """The channel's values on its whole grid, NaN where the recording lost samples."""
+    if index[-1] + 1 == index.size:
+        return ch.values
+    full = np.full(int(index[-1]) + 1, np.nan)
+    full[index] = ch.values
+    return full
+
+
+def _time_gaps(ch: RawChannel, index: np.ndarray, fs: float, odometry: Odometry) -> list[QCEvent]:
+    """One ``time_gap`` finding per run of lost samples, located with the odometer's reading."""
+    out = []
+    for j in np.flatnonzero(np.diff(index) > 1):
+        lost = int(index[j + 1] - index[j] - 1)
+        t_a, t_b = float(ch.t[j] + 1 / fs), float(ch.t[j + 1] - 1 / fs)
+        c = np.interp([t_a, t_b], odometry.t, odometry.position)
+        out.append(QCEvent("time_gap", ch.name, t_a, t_b,
+                           f"{lost} sample(s) lost by the data logger (time stamps jump "
+                           f"{ch.t[j + 1] - ch.t[j]:.6g} s); NaN in the run, not interpolated",
+                           "masked", float(c.min()), float(c.max())))
+    return out
+
+
+def _odometry_gaps(ch: RawChannel, source: str) -> list[tuple[float, float, str]]:
+    """Stretches an odometry channel does not cover: its time stamps jump by more than
+    :data:`ODOMETRY_GAP_FACTOR` median intervals (OdometryError if they do not increase)."""
+    d = np.diff(ch.t)
+    if ch.t.size < 2 or not np.all(d > 0):
+        raise OdometryError(f"{source}: channel {ch.name!r} needs at least two samples with increasing time stamps")
+    j = np.flatnonzero(d > ODOMETRY_GAP_FACTOR * np.median(d))
+    return [(float(ch.t[k]), float(ch.t[k + 1]), ch.name) for k in j]
 
 
 def _unit_check(ch: RawChannel, row: pd.Series, source: str) -> None:
@@ -62,6 +123,12 @@ def _unit_check(ch: RawChannel, row: pd.Series, source: str) -> None:
     if file_unit and file_unit != row["unit"]:
         raise ChannelError(f"{source}: channel {ch.name!r} is recorded in {ch.unit!r} but the sensor table says "
                            f"{row['unit']!r} (sensitivity {row['sensitivity']:g}); correct the table or the file")
+
+
+def _unusable(raw: RawRecording, name: str, source: str, error: type[Exception]) -> None:
+    """Raise ``error`` when the file holds ``name`` but not as a usable channel (ambiguous, not numeric)."""
+    if name in raw.unusable:
+        raise error(f"{source}: channel {name!r} of the sensor table cannot be used: {raw.unusable[name]}")
 
 
 def _header(raw: RawRecording, source: str, direction: str | None) -> RunHeader:
@@ -87,9 +154,10 @@ def _header(raw: RawRecording, source: str, direction: str | None) -> RunHeader:
 
 def _odometry(raw: RawRecording, sensors: pd.DataFrame, source: str) -> Odometry:
     rows = {q: sensors[sensors["quantity"] == q] for q in ("speed", "position", "balise")}
-    got = {}
+    got, gaps = {}, []
     for q in ("speed", "position"):
         name = str(rows[q]["name"].iloc[0])
+        _unusable(raw, name, source, OdometryError)
         if name not in raw.channels:
             raise OdometryError(f"{source}: the {q} channel {name!r} of the sensor table is not in the file; the "
                                 f"file has {sorted(raw.channels)}")
@@ -97,7 +165,7 @@ def _odometry(raw: RawRecording, sensors: pd.DataFrame, source: str) -> Odometry
         _unit_check(ch, rows[q].iloc[0], source)
         if ch.values.size < 2 or not np.isfinite(ch.values).any():
             raise OdometryError(f"{source}: the {q} channel {name!r} holds no finite values")
-        channel_rate(ch, source)
+        gaps += _odometry_gaps(ch, source)
         got[q] = (name, ch, float(rows[q]["sensitivity"].iloc[0]))
     (sn, sp, ss), (pn, pp, ps) = got["speed"], got["position"]
     t = pp.t
@@ -108,6 +176,7 @@ def _odometry(raw: RawRecording, sensors: pd.DataFrame, source: str) -> Odometry
     bt, bv, names = np.zeros(0), np.zeros(0), {"speed": sn, "position": pn}
     if len(rows["balise"]):
         bn = str(rows["balise"]["name"].iloc[0])
+        _unusable(raw, bn, source, OdometryError)
         if bn in raw.channels:
             bc = raw.channels[bn]
             _unit_check(bc, rows["balise"].iloc[0], source)
@@ -116,7 +185,11 @@ def _odometry(raw: RawRecording, sensors: pd.DataFrame, source: str) -> Odometry
             names["balise"] = bn
         else:
             log.warning("%s: balise channel %r is not in the file; no odometer reset is known", source, bn)
-    return Odometry(t=t, speed=speed, position=pp.values * ps, balise_t=bt, balise_chainage=bv, names=names)
+    spans: dict[tuple[float, float], list[str]] = {}
+    for g0, g1, name in gaps:  # both channels of one logger lose the same stretch: one gap
+        spans.setdefault((g0, g1), []).append(name)
+    return Odometry(t=t, speed=speed, position=pp.values * ps, balise_t=bt, balise_chainage=bv, names=names,
+                    gaps=tuple((g0, g1, ", ".join(n)) for (g0, g1), n in sorted(spans.items())))
 
 
 def assemble_run(raw: RawRecording, sensors: pd.DataFrame, source: str, fmt: str, *, fs: float | None = None,
@@ -126,9 +199,10 @@ def assemble_run(raw: RawRecording, sensors: pd.DataFrame, source: str, fmt: str
     odometry = _odometry(raw, sensors, source)
     acc_rows = sensors[sensors["quantity"] == "acceleration"].reset_index(drop=True)
     rejected: list[QCEvent] = []
-    present, rates = [], {}
+    present, rates, grids = [], {}, {}
     for _, row in acc_rows.iterrows():
         name = str(row["name"])
+        _unusable(raw, name, source, ChannelError)
         if name not in raw.channels:
             msg = (f"channel {name!r} (wheelset {row['wheelset']}, side {row['side']}, {row['direction']}) of the "
                    f"sensor table is missing from the file")
@@ -137,9 +211,10 @@ def assemble_run(raw: RawRecording, sensors: pd.DataFrame, source: str, fmt: str
             continue
         ch = raw.channels[name]
         _unit_check(ch, row, source)
-        if ch.values.size > MAX_SAMPLES:
-            raise ChannelError(f"{source}: channel {name!r} has {ch.values.size} samples; at most {MAX_SAMPLES}")
-        rates[name] = channel_rate(ch, source)
+        rates[name], grids[name] = sample_grid(ch, source)
+        if grids[name][-1] + 1 > MAX_SAMPLES:
+            raise ChannelError(f"{source}: channel {name!r} spans {grids[name][-1] + 1} samples; at most "
+                               f"{MAX_SAMPLES}")
         present.append(row)
     if not present:
         raise ChannelError(f"{source}: none of the acceleration channels of the sensor table "
@@ -168,18 +243,24 @@ def assemble_run(raw: RawRecording, sensors: pd.DataFrame, source: str, fmt: str
     if n < 2:
         raise ChannelError(f"{source}: the acceleration channels do not overlap in time")
     data = np.empty((len(keep), n))
+    gaps: list[QCEvent] = []
     for i, row in enumerate(keep):
-        ch = raw.channels[str(row["name"])]
+        name = str(row["name"])
+        ch = raw.channels[name]
         off = (t0 - ch.t[0]) * fs_run
         k0 = int(round(off))
         if abs(off - k0) > 0.01:
-            raise ChannelError(f"{source}: channel {row['name']!r} starts {off - k0:+.3f} samples off the common time "
+            raise ChannelError(f"{source}: channel {name!r} starts {off - k0:+.3f} samples off the common time "
                                "base of the other accelerations; the estimator needs simultaneously sampled channels")
-        data[i] = ch.values[k0:k0 + n]
+        data[i] = _on_grid(ch, grids[name])[k0:k0 + n]
+        gaps += [e for e in _time_gaps(ch, grids[name], fs_run, odometry) if e.t_end >= t0 and e.t_start <= t1]
+    for e in gaps:
+        log.warning("%s: %s", source, e.describe())
+    lost = f"; {len(gaps)} time-stamp gap(s), the samples lost masked" if gaps else ""
     table = pd.DataFrame(keep).reset_index(drop=True)
     run = Run(source=source, format=fmt, header=header, channels=table, fs=fs_run, t0=float(t0), acceleration=data,
-              units=tuple(str(u) for u in table["unit"]), odometry=odometry, rejected=tuple(rejected),
+              units=tuple(str(u) for u in table["unit"]), odometry=odometry, rejected=tuple(rejected + gaps),
               processing=(f"read {source} ({fmt}): {len(keep)} acceleration channels at {fs_run:g} Hz, "
                           f"{n / fs_run:.2f} s; odometry {odometry.names}; {odometry.balise_t.size} balise event(s); "
-                          f"{len(rejected)} channel(s) rejected",))
+                          f"{len(rejected)} channel(s) rejected{lost}",))
     return run

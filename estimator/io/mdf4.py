@@ -77,8 +77,31 @@ def open_mdf(path: Path):
     raise RunFileError(f"{path}: not a readable MDF 4 file ({reason}); the file may be truncated or corrupt")
 
 
+def _read(mdf, path: Path, name: str, group: int, index: int) -> RawChannel | str:
+    """One channel occurrence, or why it cannot be used (its values are not numbers)."""
+    try:
+        sig = mdf.get(name, group=group, index=index, raw=False)
+    except Exception as exc:  # noqa: BLE001
+        raise RunFileError(f"{path}: channel {name!r} cannot be read ({type(exc).__name__}: {exc}); the "
+                           "file may be truncated") from None
+    values = np.asarray(sig.samples)
+    if values.dtype.kind not in "fiu":
+        return f"its values are not numbers ({values.dtype}: text or structured values)"
+    return RawChannel(name, np.asarray(sig.timestamps, float), values.astype(float), str(sig.unit or ""))
+
+
+def _same(a: RawChannel, b: RawChannel) -> bool:
+    return (a.unit == b.unit and a.t.shape == b.t.shape and np.array_equal(a.t, b.t)
+            and np.array_equal(a.values, b.values, equal_nan=True))
+
+
 def read_raw(path: Path) -> RawRecording:
     """Every channel of an MDF 4 file (time stamps, values, unit) and the header's common properties.
+
+    A name that several channel groups carry (a data logger recording one signal in two groups, or two signals
+    of one name) is kept when every copy holds the same data. Otherwise each copy is available as
+    ``NAME@GROUP`` (the channel group's index in the file) and ``NAME`` alone is listed as unusable, with the
+    qualified names in the reason: the sensor table must say which one it means; nothing is picked silently.
 
     Raises
     ------
@@ -91,24 +114,30 @@ def read_raw(path: Path) -> RawRecording:
             raise RunFileError(f"{path}: MDF version {mdf.version}; the field contract uses MDF 4")
         header = header_properties(mdf.header.comment or "")
         channels: dict[str, RawChannel] = {}
+        unusable: dict[str, str] = {}
         for name, where in mdf.channels_db.items():
-            if name in ("time", "t", "") or name in channels:
+            if name in ("time", "t", ""):
                 continue
-            group, index = where[0]
-            if index == mdf.masters_db.get(group):
+            copies = {}
+            for group, index in where:
+                if index != mdf.masters_db.get(group):
+                    copies[group] = _read(mdf, path, name, group, index)
+            if not copies:
                 continue
-            try:
-                sig = mdf.get(name, group=group, index=index, raw=False)
-            except Exception as exc:  # noqa: BLE001
-                raise RunFileError(f"{path}: channel {name!r} cannot be read ({type(exc).__name__}: {exc}); the "
-                                   "file may be truncated") from None
-            values = np.asarray(sig.samples)
-            if values.dtype.kind not in "fiu":
+            read = {g: c for g, c in copies.items() if isinstance(c, RawChannel)}
+            if not read:
+                unusable[name] = next(iter(copies.values()))
                 continue
-            channels[name] = RawChannel(name, np.asarray(sig.timestamps, float), values.astype(float),
-                                        str(sig.unit or ""))
+            first = next(iter(read.values()))
+            if all(_same(first, c) for c in read.values()):
+                channels[name] = first
+                continue
+            for g, c in read.items():
+                channels[f"{name}@{g}"] = RawChannel(f"{name}@{g}", c.t, c.values, c.unit)
+            unusable[name] = (f"channel groups {sorted(read)} each hold a channel of this name with different data; "
+                              f"name one of {[f'{name}@{g}' for g in sorted(read)]} in the sensor table")
     finally:
         mdf.close()
     if not channels:
         raise RunFileError(f"{path}: the MDF file holds no numeric channel; the file may be truncated")
-    return RawRecording(channels, header)
+    return RawRecording(channels, header, unusable)

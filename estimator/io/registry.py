@@ -39,10 +39,13 @@ class RawChannel:
 
 @dataclass(frozen=True, eq=False)
 class RawRecording:
-    """What a reader returns: channels by name and the run header's fields (strings)."""
+    """What a reader returns: channels by name, the run header's fields (strings), and the names the file holds
+    but that cannot be used as they stand, each with the reason (e.g. a name several channel groups carry with
+    different data; the reason names the qualified names that can be used instead)."""
 
     channels: Mapping[str, RawChannel]
     header: Mapping[str, str] = field(default_factory=dict)
+    unusable: Mapping[str, str] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

@@ -33,18 +33,28 @@ QUANTITIES = ("acceleration", "speed", "position", "balise")
 MAX_ROWS = 1000
 MAX_BYTES = 1_000_000
 
-_UNIT_ALIASES = {"m/s^2": "m/s^2", "m/s2": "m/s^2", "m/s²": "m/s^2", "m s-2": "m/s^2", "g": "g", "g0": "g",
-                 "m/s": "m/s", "m s-1": "m/s", "km/h": "km/h", "kph": "km/h", "m": "m", "mm": "mm", "km": "km"}
+#: spellings data loggers write (compared without blanks, "·" or "*", "**" as "^", lower case) -> canonical unit
+_UNIT_ALIASES = {"m/s^2": "m/s^2", "m/s2": "m/s^2", "m/s²": "m/s^2", "ms-2": "m/s^2", "ms^-2": "m/s^2",
+                 "m/s/s": "m/s^2", "mm/s^2": "mm/s^2", "mm/s2": "mm/s^2", "mm/s²": "mm/s^2",
+                 "g": "g", "g0": "g", "gn": "g", "g_n": "g",
+                 "m/s": "m/s", "ms-1": "m/s", "ms^-1": "m/s", "km/h": "km/h", "kph": "km/h", "kmh": "km/h",
+                 "km/hr": "km/h", "kmh-1": "km/h", "kmh^-1": "km/h", "m": "m", "mm": "mm", "km": "km"}
 #: SI factor of each recognised unit (the sensitivity of a perfect sensor recorded in it)
-UNIT_TO_SI = {"m/s^2": 1.0, "g": 9.80665, "m/s": 1.0, "km/h": 1 / 3.6, "m": 1.0, "mm": 1e-3, "km": 1e3}
-_QUANTITY_UNITS = {"acceleration": ("m/s^2", "g"), "speed": ("m/s", "km/h"), "position": ("m", "mm", "km"),
-                   "balise": ("m", "mm", "km")}
+UNIT_TO_SI = {"m/s^2": 1.0, "mm/s^2": 1e-3, "g": 9.80665, "m/s": 1.0, "km/h": 1 / 3.6, "m": 1.0, "mm": 1e-3,
+              "km": 1e3}
+_QUANTITY_UNITS = {"acceleration": ("m/s^2", "mm/s^2", "g"), "speed": ("m/s", "km/h"),
+                   "position": ("m", "mm", "km"), "balise": ("m", "mm", "km")}
+
+
+_SUPERSCRIPTS = str.maketrans({"⁻": "^-", "¹": "1", "²": "2"})
 
 
 def normalise_unit(unit) -> str:
-    """Canonical spelling of a unit (``"m/s²"`` → ``"m/s^2"``); unknown units are returned stripped."""
+    """Canonical spelling of a unit (``"m/s²"``, ``"m s-2"``, ``"m·s^-2"`` → ``"m/s^2"``; ``"G"`` → ``"g"``);
+    unknown units are returned stripped."""
     u = "" if unit is None or (isinstance(unit, float) and math.isnan(unit)) else str(unit).strip()
-    return _UNIT_ALIASES.get(u.lower() if u.lower() in ("g", "g0") else u, u)
+    key = "".join(u.split()).replace("**", "^").replace("·", "").replace("*", "").lower().translate(_SUPERSCRIPTS)
+    return _UNIT_ALIASES.get(key, u)
 
 
 def read_sensors(path) -> pd.DataFrame:
