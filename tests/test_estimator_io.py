@@ -29,6 +29,16 @@ HEADER = {"run_id": "r7", "date": "2026-02-03", "direction": "forward", "train":
           "line": "M1", "weather": "dry"}
 
 
+def _write(folder, stem, ch, fmt):
+    """The channels as a run file of format ``fmt`` in ``folder``."""
+    p = folder / f"{stem}.{dict(mdf4='mf4', parquet='parquet', csv='csv')[fmt]}"
+    if fmt == "mdf4":
+        write_mdf4(p, ch, HEADER)
+    else:
+        write_run_table({k: RawChannel(k, *v) for k, v in ch.items()}, HEADER, p, fmt)
+    return p
+
+
 @pytest.fixture()
 def table(tmp_path):
     p = tmp_path / "sensors.csv"
@@ -63,12 +73,7 @@ def test_sensor_table_errors_name_row_column_and_value(tmp_path, edit, message):
 @pytest.mark.parametrize("fmt", ["mdf4", "parquet", "csv"])
 def test_the_three_formats_give_the_same_run(tmp_path, table, fmt):
     ch = _channels()
-    path = tmp_path / f"run.{dict(mdf4='mf4', parquet='parquet', csv='csv')[fmt]}"
-    if fmt == "mdf4":
-        write_mdf4(path, ch, HEADER)
-    else:
-        write_run_table({k: RawChannel(k, *v) for k, v in ch.items()}, HEADER, path, fmt)
-    run = read_run(path, table)
+    run = read_run(_write(tmp_path, "run", ch, fmt), table)
     assert run.format == fmt
     assert run.header.run_id == "r7" and run.header.direction == "forward" and run.header.train == "T12"
     assert run.header.extra == {"weather": "dry"}
@@ -188,12 +193,7 @@ def test_samples_the_logger_lost_are_nan_masked_and_reported_not_interpolated(tm
 
     ch = _channels()
     _without(ch, "ACC_W1L_Z", 1000, 1050)
-    p = tmp_path / f"gap.{dict(mdf4='mf4', parquet='parquet')[fmt]}"
-    if fmt == "mdf4":
-        write_mdf4(p, ch, HEADER)
-    else:
-        write_run_table({k: RawChannel(k, *v) for k, v in ch.items()}, HEADER, p, fmt)
-    run = read_run(p, table)
+    run = read_run(_write(tmp_path, "gap", ch, fmt), table)
     assert run.n_samples == 3000 and run.fs == pytest.approx(1000.0)
     i = run.index("ACC_W1L_Z")
     assert np.isnan(run.acceleration[i, 1000:1050]).all()
@@ -218,8 +218,7 @@ def test_a_channel_resuming_off_its_sampling_grid_is_an_error(tmp_path, table):
     t = t.copy()
     t[1500:] += 0.0004  # resumes 0.4 sampling intervals late: no longer sampled with the other channels
     ch["ACC_W2L_Z"] = (np.r_[t[:1000], t[1500:]], np.r_[v[:1000], v[1500:]], u)
-    p = tmp_path / "offgrid.parquet"
-    write_run_table({k: RawChannel(k, *c) for k, c in ch.items()}, HEADER, p)
+    p = _write(tmp_path, "offgrid", ch, "parquet")
     with pytest.raises(ChannelError, match="'ACC_W2L_Z' resumes 501.400 sampling intervals after a gap, off its"):
         read_run(p, table)
 
@@ -233,9 +232,7 @@ def test_a_stretch_without_odometry_is_interpolated_when_short_and_masked_when_l
     ch = _channels()
     for name in ("SPEED", "POSITION"):
         _without(ch, name, 150, 150 + lost)
-    p = tmp_path / "odogap.parquet"
-    write_run_table({k: RawChannel(k, *c) for k, c in ch.items()}, HEADER, p)
-    run = read_run(p, table)
+    run = read_run(_write(tmp_path, "odogap", ch, "parquet"), table)
     ((g0, g1, names),) = run.odometry.gaps
     assert names == "SPEED, POSITION"
     assert (g0, g1) == (pytest.approx(1.49), pytest.approx(1.5 + lost / 100))
