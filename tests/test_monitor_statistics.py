@@ -146,6 +146,27 @@ def test_variant_spread_is_the_quantile_of_level_differences_against_the_same_ru
     assert sp["variants"].iloc[0] == 80
 
 
+def test_a_source_of_several_parameters_adds_each_parameters_side_in_quadrature():
+    """Track variants of one run: pad stiffness x2 / x0.5 move the level by +0.6 / -0.8 dB, the supports by
+    +0.3 dB, the loss law (two ends) by -0.4 / -0.1 dB: independent unknowns, so the source's sides are
+    -sqrt(0.8² + 0.4²) and +sqrt(0.6² + 0.3²) — not the largest single deviation; a source of one parameter
+    (joint draws) keeps its quantiles."""
+    from estimator.monitoring.confidence import parameter_of
+
+    nom = pd.DataFrame([rows("a", 10.0)])
+    moves = {"pad stiffness x2": 0.6, "pad stiffness x0.5": -0.8, "discrete supports (midspan)": 0.3,
+             "causal layers, stated stiffness at 10 Hz": -0.4, "causal layers, stated stiffness at 1e+03 Hz": -0.1}
+    var = pd.DataFrame([{**rows("a", 10.0 * 10 ** (db / 20)), "source": "track", "variant": label}
+                        for label, db in moves.items()])
+    sp = variant_spread(variant_deltas(var, nom), confidence=1.0).iloc[0]
+    assert sp["parameters"] == 3 and sp["variants"] == 5
+    assert sp["lo_db"] == pytest.approx(-math.hypot(0.8, 0.4), abs=1e-9)
+    assert sp["hi_db"] == pytest.approx(math.hypot(0.6, 0.3), abs=1e-9)
+    assert sp["median_db"] == pytest.approx(-0.1, abs=1e-9)
+    assert [parameter_of(v) for v in ("shift y -30 mm", "wheel load +25 %", "rail head radius 200 mm", "model 07")] \
+        == ["shift y", "wheel load", "rail head radius", "model"]
+
+
 # ----------------------------------------------------------------------------- consistency
 def _survey(n_runs=6, span=(0, 300), noise_db=0.4, seed=0, lead_offset=None, fwd_offset=None, corr=None):
     rng = np.random.default_rng(seed)

@@ -23,7 +23,13 @@ range) and the track variants (discrete supports, pad and ballast stiffness
 and damping ranges, the layers' causal loss law) of
 :mod:`estimator.monitoring.variants`. The estimator's contact and
 track are idealisations of one vehicle load and one continuously supported
-track; these variants span what the real ones may be.
+track; these variants span what the real ones may be. The placement,
+contact and track sources move several independent parameters one at a time (the track's pad and
+ballast stiffness and damping, supports and loss law; the wheel load and
+rail head; the two placement axes): each parameter's quantile range counts
+on its own and the source adds them in quadrature on each side
+(:func:`variant_spread`; GUM eq. 10); the largest single deviation alone
+would be the interval of a track with only one parameter off.
 
 **Reference calibration** (systematic, measured; optional): where a trolley
 measured the rails on a survey day (a *calibration site*), the day
@@ -51,6 +57,8 @@ interval is ``[L − lower, L + upper]`` around the day's level ``L``.
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pandas as pd
 from scipy import stats
@@ -58,7 +66,7 @@ from scipy import stats
 from estimator.monitoring.averaging import MIN_VALID_SHARE, level_db
 from estimator.monitoring.errors import MonitoringError
 
-__all__ = ["SOURCES", "variant_deltas", "variant_spread", "with_intervals", "coverage", "coverage_table",
+__all__ = ["SOURCES", "parameter_of", "variant_deltas", "variant_spread", "with_intervals", "coverage", "coverage_table",
            "reference_calibration", "with_reference"]
 
 SOURCES = ("model", "placement", "contact", "track")
@@ -79,17 +87,51 @@ def variant_deltas(variants: pd.DataFrame, nominal: pd.DataFrame, unit: str = "w
     return j.drop(columns=["_nom"])
 
 
+#: the value part of a variant's label (``x2``, ``+10 mm``, ``-25 %``, ``200 mm``, ``at 10 Hz``, ``01``): what is left
+#: names the parameter the variant moves
+_VALUE = re.compile(r"\s*(?:\bat\s+)?[x+\-]?\d[\d.eE+\-]*(?:\s*\S+)?\s*$")
+
+
+def parameter_of(variant: str) -> str:
+    """The parameter a variant label moves: the label without its value (``"pad stiffness x0.5"`` → ``"pad
+    stiffness"``, ``"shift y -30 mm"`` → ``"shift y"``, ``"model 07"`` → ``"model"``)."""
+    return _VALUE.sub("", str(variant)).strip() or str(variant)
+
+
 def variant_spread(deltas: pd.DataFrame, *, unit: str = "window_m", confidence: float = 0.95,
                    by: tuple[str, ...] = ("date",)) -> pd.DataFrame:
-    """Per ``by``, source, rail, band and unit: the ``confidence`` interval of ``ΔL`` and its median."""
+    """Per ``by``, source, rail, band and unit: the ``confidence`` interval of ``ΔL`` and its median.
+
+    A source's variants may move several independent parameters (the track's pad and ballast stiffness, their
+    damping, the supports, the loss law; the contact's wheel load and rail head; the placement's two axes). Each
+    parameter's interval is the ``confidence`` quantile range of its own variants' ``ΔL`` (pooled over runs),
+    its sides taken from 0 (a parameter that only raises the level widens only the upper side); the source's
+    sides are those of its parameters added in quadrature, the first-order combination of independent inputs
+    (JCGM 100:2008, GUM, eq. 10). One parameter — the perturbed models' joint draws — gives its quantiles as
+    they are. ``median_db`` is the median of all the source's ``ΔL``; ``parameters`` counts what was combined.
+    """
     keys = list(by) + ["source", "rail", "band_mm", unit]
     if deltas.empty:
-        return pd.DataFrame(columns=keys + ["lo_db", "hi_db", "median_db", "variants"])
+        return pd.DataFrame(columns=keys + ["lo_db", "hi_db", "median_db", "variants", "parameters"])
     lo, hi = (1 - confidence) / 2, (1 + confidence) / 2
-    g = deltas.groupby(keys, sort=True)["delta_db"]
-    out = pd.DataFrame({"lo_db": g.quantile(lo), "hi_db": g.quantile(hi), "median_db": g.median(),
-                        "variants": g.size()}).reset_index()
-    return out
+    if "variant" in deltas.columns:
+        d = deltas.assign(_parameter=deltas["variant"].map({v: parameter_of(v) for v in deltas["variant"].unique()}))
+    else:
+        d = deltas.assign(_parameter="")
+    per = d.groupby(keys + ["_parameter"], sort=True)["delta_db"]
+    p = pd.DataFrame({"q_lo": per.quantile(lo), "q_hi": per.quantile(hi)}).reset_index()
+    single = p.groupby(keys)["_parameter"].transform("size") == 1
+    # several parameters: each side from 0, squared for the quadrature; one parameter: its quantiles as they are
+    p["lo2"] = np.where(single, np.nan, np.minimum(p["q_lo"], 0.0) ** 2)
+    p["hi2"] = np.where(single, np.nan, np.maximum(p["q_hi"], 0.0) ** 2)
+    g = p.groupby(keys, sort=True)
+    out = pd.DataFrame({"lo_db": np.where(g.size() == 1, g["q_lo"].first(), -np.sqrt(g["lo2"].sum())),
+                        "hi_db": np.where(g.size() == 1, g["q_hi"].first(), np.sqrt(g["hi2"].sum())),
+                        "parameters": g.size()}, index=g.size().index)
+    a = d.groupby(keys, sort=True)["delta_db"]
+    out["median_db"] = a.median()
+    out["variants"] = a.size()
+    return out.reset_index()[keys + ["lo_db", "hi_db", "median_db", "variants", "parameters"]]
 
 
 def with_intervals(day: pd.DataFrame, spread: pd.DataFrame | None = None, *, unit: str = "window_m",

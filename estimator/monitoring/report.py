@@ -184,7 +184,8 @@ def write_report(res, path, figures: dict, cfg: MonitoringConfig = MonitoringCon
           "runs), the wheelset model's uncertainty (perturbed modal frequencies and damping ratios applied to the "
           "same accelerations), the accelerometers' placement (±10/30/50 mm), the wheel–rail contact (wheel load, "
           "rail-head radius) and the track (discrete supports, pad and ballast stiffness and damping, the layers' "
-          "causal loss law). All but the scatter are systematic: averaging more runs does not shrink them"
+          "causal loss law); within a source, each parameter's range counts and they add in quadrature, as the "
+          "sources do. All but the scatter are systematic: averaging more runs does not shrink them"
           + (", and the model's own error measured against a trolley on a calibration site (below)"
              if len(cal) else
              "; a trolley record of a calibration site (<code>--calibration-trolley</code>) adds the error the "
