@@ -45,10 +45,11 @@ __all__ = ["assemble_run", "sample_grid"]
 
 log = logging.getLogger("estimator")
 
-#: relative tolerance on a channel's sampling interval (jitter of the time stamps)
+#: two channels' sampling rates are one rate within this relative difference
 RATE_RTOL = 1e-3
-#: a channel resuming after lost samples must land this close to its sampling grid [sampling intervals]; further
-#: off it is no longer sampled simultaneously with the other channels
+#: every time stamp must lie this close to the channel's regular grid [sampling intervals] (a logger's time-stamp
+#: resolution is far below it); further off, the channel is not sampled regularly or not simultaneously with the
+#: others (a phase error of 2π × 0.01 × 0.4 = 0.025 rad at the top of the inversion band)
 GRID_ATOL = 0.01
 #: an odometry channel's time stamps jumping by more than this many median intervals leave a gap (a balise
 #: channel is an event list and has none)
@@ -60,29 +61,32 @@ MAX_SAMPLES = 50_000_000
 def sample_grid(ch: RawChannel, source: str) -> tuple[float, np.ndarray]:
     """Sampling rate [Hz] of a channel and each sample's index on its regular grid (module docstring).
 
-    The interval is the median of the time-stamp differences. A difference of one interval (within
-    :data:`RATE_RTOL`) is the next sample; a difference of ``k >= 2`` intervals landing within
-    :data:`GRID_ATOL` of the grid is ``k - 1`` lost samples. Anything else is a ChannelError naming the
-    channel and the time.
+    Each time-stamp difference is a whole number of median intervals (1: the next sample; ``k >= 2``: ``k - 1``
+    lost samples). The grid is then the straight line through the first and last stamps (a logger's clock a
+    little off its nominal rate is its rate), and every stamp must lie within :data:`GRID_ATOL` intervals of it:
+    a logger's time-stamp resolution (1 µs on a 1024 Hz channel) passes, a channel that restarts out of phase
+    or is not sampled regularly is a ChannelError naming the channel and the time.
     """
     t = ch.t
     if t.size < 2:
         raise ChannelError(f"{source}: channel {ch.name!r} has {t.size} sample(s); a signal needs at least 2")
     d = np.diff(t)
-    dt = float(np.median(d))
-    if not dt > 0 or not np.all(d > 0):
-        k = int(np.argmax(d <= 0)) if dt > 0 else 0
+    if not np.all(d > 0):
+        k = int(np.argmax(~(d > 0)))
         raise ChannelError(f"{source}: channel {ch.name!r} has non-increasing time stamps (at t = {t[k]:.6g} s)")
-    steps = np.rint(d / dt)
-    tol = np.where(steps == 1, max(RATE_RTOL * dt, 1e-9), GRID_ATOL * dt)
-    off = np.abs(d - steps * dt) - tol
-    if np.any(off > 0):
-        k = int(np.argmax(off))
-        what = ("is not evenly sampled" if steps[k] == 1 else
-                f"resumes {d[k] / dt:.3f} sampling intervals after a gap, off its sampling grid")
+    dt = float(np.median(d))
+    steps = np.maximum(np.rint(d / dt), 1.0)
+    index = np.concatenate([[0], np.cumsum(steps)]).astype(np.int64)
+    dt = float(t[-1] - t[0]) / float(index[-1])
+    off = (t - t[0]) / dt - index  # each stamp's distance from the grid [intervals]
+    if np.max(np.abs(off)) > GRID_ATOL:
+        k = int(np.argmax(np.abs(np.diff(off))))  # where the stamps leave the grid
+        what = (f"resumes {d[k] / dt:.3f} sampling intervals after a gap, off its sampling grid" if steps[k] > 1 else
+                f"is not evenly sampled (a time stamp {np.max(np.abs(off)):.3f} sampling intervals off the "
+                "regular grid)")
         raise ChannelError(f"{source}: channel {ch.name!r} {what} (interval {d[k]:.6g} s at t = {t[k]:.3f} s, "
-                           f"median {dt:.6g} s); the estimator needs a constant sampling rate")
-    return 1.0 / dt, np.concatenate([[0], np.cumsum(steps)]).astype(np.int64)
+                           f"mean {dt:.6g} s); the estimator needs a constant sampling rate")
+    return 1.0 / dt, index
 
 
 def _on_grid(ch: RawChannel, index: np.ndarray) -> np.ndarray:
