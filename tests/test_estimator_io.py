@@ -224,8 +224,8 @@ def test_a_channel_resuming_off_its_sampling_grid_is_an_error(tmp_path, table):
 
 
 def test_time_stamps_of_a_loggers_clock_resolution_are_a_grid_and_jitter_is_not(tmp_path, table):
-    """A 1024 Hz channel stamped to the microsecond (intervals of 976 and 977 µs) is evenly sampled at 1024 Hz;
-    stamps scattered by a fifth of an interval are not."""
+    """A 1024 Hz channel stamped to the microsecond (intervals of 976 and 977 µs) is evenly sampled at 1024 Hz, and
+    so is one whose stamps wander slowly against the samples; stamps scattered by a fifth of an interval are not."""
     ch = _channels(fs=1024.0)
     for name in [k for k in ch if k.startswith("ACC")]:
         t, v, u = ch[name]
@@ -233,6 +233,11 @@ def test_time_stamps_of_a_loggers_clock_resolution_are_a_grid_and_jitter_is_not(
     assert len(np.unique(np.round(np.diff(ch["ACC_W1L_Z"][0]) * 1e6))) == 2
     run = read_run(_write(tmp_path, "us", ch, "parquet"), table)
     assert run.fs == pytest.approx(1024.0, rel=1e-6) and run.n_samples == 3000 and not run.rejected
+    # a time reference the sampling clock wanders against (GPS stamps on a crystal): slow, a third of an interval
+    # over the record, every interval within 0.05 % — one grid
+    slow = {k: (t + 0.3 / 1024.0 * np.sin(np.pi * np.arange(t.size) / t.size), v, u) if k.startswith("ACC")
+            else (t, v, u) for k, (t, v, u) in ch.items()}
+    assert read_run(_write(tmp_path, "slow", slow, "parquet"), table).n_samples == 3000
     t, v, u = ch["ACC_W1L_Z"]
     ch["ACC_W1L_Z"] = (t + np.random.default_rng(1).uniform(-0.2, 0.2, t.size) / 1024.0, v, u)
     with pytest.raises(ChannelError, match="'ACC_W1L_Z' is not evenly sampled"):

@@ -47,9 +47,9 @@ log = logging.getLogger("estimator")
 
 #: two channels' sampling rates are one rate within this relative difference
 RATE_RTOL = 1e-3
-#: every time stamp must lie this close to the channel's regular grid [sampling intervals] (a logger's time-stamp
-#: resolution is far below it); further off, the channel is not sampled regularly or not simultaneously with the
-#: others (a phase error of 2π × 0.01 × 0.4 = 0.025 rad at the top of the inversion band)
+#: every time-stamp difference must lie this close to a whole number of sampling intervals [intervals] (a logger's
+#: time-stamp resolution is far below it); further off, the channel is not sampled regularly or not simultaneously
+#: with the others (a phase error of 2π × 0.01 × 0.4 = 0.025 rad at the top of the inversion band)
 GRID_ATOL = 0.01
 #: an odometry channel's time stamps jumping by more than this many median intervals leave a gap (a balise
 #: channel is an event list and has none)
@@ -61,11 +61,11 @@ MAX_SAMPLES = 50_000_000
 def sample_grid(ch: RawChannel, source: str) -> tuple[float, np.ndarray]:
     """Sampling rate [Hz] of a channel and each sample's index on its regular grid (module docstring).
 
-    Each time-stamp difference is a whole number of median intervals (1: the next sample; ``k >= 2``: ``k - 1``
-    lost samples). The grid is then the straight line through the first and last stamps (a logger's clock a
-    little off its nominal rate is its rate), and every stamp must lie within :data:`GRID_ATOL` intervals of it:
-    a logger's time-stamp resolution (1 µs on a 1024 Hz channel) passes, a channel that restarts out of phase
-    or is not sampled regularly is a ChannelError naming the channel and the time.
+    The interval is the mean of the differences of one interval (about the median); every difference must then
+    be a whole number of intervals (1: the next sample; ``k >= 2``: ``k - 1`` lost samples) within
+    :data:`GRID_ATOL` of an interval. Judged difference by difference, a logger's time-stamp resolution
+    (1 µs on a 1024 Hz channel) passes, and so does a clock whose rate wanders slowly over hours; a channel that
+    restarts out of phase or is not sampled regularly is a ChannelError naming the channel and the time.
     """
     t = ch.t
     if t.size < 2:
@@ -75,18 +75,17 @@ def sample_grid(ch: RawChannel, source: str) -> tuple[float, np.ndarray]:
         k = int(np.argmax(~(d > 0)))
         raise ChannelError(f"{source}: channel {ch.name!r} has non-increasing time stamps (at t = {t[k]:.6g} s)")
     dt = float(np.median(d))
+    one = np.rint(d / dt) == 1
+    dt = float(np.mean(d[one]))  # the median of quantised stamps is one of two values; their mean is the interval
     steps = np.maximum(np.rint(d / dt), 1.0)
-    index = np.concatenate([[0], np.cumsum(steps)]).astype(np.int64)
-    dt = float(t[-1] - t[0]) / float(index[-1])
-    off = (t - t[0]) / dt - index  # each stamp's distance from the grid [intervals]
-    if np.max(np.abs(off)) > GRID_ATOL:
-        k = int(np.argmax(np.abs(np.diff(off))))  # where the stamps leave the grid
+    off = np.abs(d / dt - steps)  # each difference's distance from a whole number of intervals
+    if np.max(off) > GRID_ATOL:
+        k = int(np.argmax(off))
         what = (f"resumes {d[k] / dt:.3f} sampling intervals after a gap, off its sampling grid" if steps[k] > 1 else
-                f"is not evenly sampled (a time stamp {np.max(np.abs(off)):.3f} sampling intervals off the "
-                "regular grid)")
+                f"is not evenly sampled (an interval {d[k] / dt:.3f} times the mean)")
         raise ChannelError(f"{source}: channel {ch.name!r} {what} (interval {d[k]:.6g} s at t = {t[k]:.3f} s, "
                            f"mean {dt:.6g} s); the estimator needs a constant sampling rate")
-    return 1.0 / dt, index
+    return 1.0 / dt, np.concatenate([[0], np.cumsum(steps)]).astype(np.int64)
 
 
 def _on_grid(ch: RawChannel, index: np.ndarray) -> np.ndarray:
