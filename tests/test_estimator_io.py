@@ -6,8 +6,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from estimator import (ChannelError, OdometryError, RunFileError, SensorTableError, UnknownFormatError, check_run, read_run,
-                       read_sensors)
+from estimator import (ChannelError, OdometryError, RunFileError, SensorTableError, UnknownFormatError, check_run,
+                       read_run, read_sensors)
 from estimator.io import formats, read_line, read_trolley
 from estimator.io.registry import RawChannel
 from estimator.io.tabular import write_run_table

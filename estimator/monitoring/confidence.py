@@ -24,12 +24,13 @@ and damping ranges, the layers' causal loss law) of
 :mod:`estimator.monitoring.variants`. The estimator's contact and
 track are idealisations of one vehicle load and one continuously supported
 track; these variants span what the real ones may be. The placement,
-contact and track sources move several independent parameters one at a time (the track's pad and
-ballast stiffness and damping, supports and loss law; the wheel load and
-rail head; the two placement axes): each parameter's quantile range counts
-on its own and the source adds them in quadrature on each side
-(:func:`variant_spread`; GUM eq. 10); the largest single deviation alone
-would be the interval of a track with only one parameter off.
+contact and track sources move several independent parameters one at a
+time (the track's pad and ballast stiffness and damping, supports and loss
+law; the wheel load and rail head; the two placement axes): each
+parameter's quantile range counts on its own and the source adds them in
+quadrature on each side (:func:`variant_spread`; GUM eq. 10); the largest
+single deviation alone would be the interval of a track with only one
+parameter off.
 
 **Reference calibration** (systematic, measured; optional): where a trolley
 measured the rails on a survey day (a *calibration site*), the day
@@ -66,8 +67,8 @@ from scipy import stats
 from estimator.monitoring.averaging import MIN_VALID_SHARE, level_db
 from estimator.monitoring.errors import MonitoringError
 
-__all__ = ["SOURCES", "parameter_of", "variant_deltas", "variant_spread", "with_intervals", "coverage", "coverage_table",
-           "reference_calibration", "with_reference"]
+__all__ = ["SOURCES", "parameter_of", "variant_deltas", "variant_spread", "with_intervals", "coverage",
+           "coverage_table", "reference_calibration", "with_reference"]
 
 SOURCES = ("model", "placement", "contact", "track")
 #: the measured source (:func:`with_reference`), added at monitoring time when a calibration site is given
@@ -125,9 +126,10 @@ def variant_spread(deltas: pd.DataFrame, *, unit: str = "window_m", confidence: 
     p["lo2"] = np.where(single, np.nan, np.minimum(p["q_lo"], 0.0) ** 2)
     p["hi2"] = np.where(single, np.nan, np.maximum(p["q_hi"], 0.0) ** 2)
     g = p.groupby(keys, sort=True)
-    out = pd.DataFrame({"lo_db": np.where(g.size() == 1, g["q_lo"].first(), -np.sqrt(g["lo2"].sum())),
-                        "hi_db": np.where(g.size() == 1, g["q_hi"].first(), np.sqrt(g["hi2"].sum())),
-                        "parameters": g.size()}, index=g.size().index)
+    n = g.size()
+    out = pd.DataFrame({"lo_db": np.where(n == 1, g["q_lo"].first(), -np.sqrt(g["lo2"].sum())),
+                        "hi_db": np.where(n == 1, g["q_hi"].first(), np.sqrt(g["hi2"].sum())),
+                        "parameters": n}, index=n.index)
     a = d.groupby(keys, sort=True)["delta_db"]
     out["median_db"] = a.median()
     out["variants"] = a.size()
