@@ -177,17 +177,13 @@ def odometry_track(odo: Odometry, travel_sign: int, *, max_scale_error: float = 
     untrusted: list[tuple[float, float]] = []
     for g0, g1, name in odo.gaps:
         c = np.interp([g0, g1], t, pos)
-        if g1 - g0 > MAX_ODOMETRY_GAP_S:
-            events.append(QCEvent("odometry_gap", "*", g0, g1,
-                                  f"{name}: no sample for {g1 - g0:.3f} s; the chainage there is not "
-                                  f"measured (longer than {MAX_ODOMETRY_GAP_S:g} s)", "masked",
-                                  float(c.min()), float(c.max())))
+        long = g1 - g0 > MAX_ODOMETRY_GAP_S
+        what = (f"the chainage there is not measured (longer than {MAX_ODOMETRY_GAP_S:g} s)" if long else
+                f"interpolated across (a gap of at most {MAX_ODOMETRY_GAP_S:g} s bends the position by < 5 mm)")
+        events.append(QCEvent("odometry_gap", "*", g0, g1, f"{name}: no sample for {g1 - g0:.3f} s; {what}",
+                              "masked" if long else "corrected", float(c.min()), float(c.max())))
+        if long:
             untrusted.append((g0, g1))
-        else:
-            events.append(QCEvent("odometry_gap", "*", g0, g1,
-                                  f"{name}: no sample for {g1 - g0:.3f} s; interpolated across (a "
-                                  f"gap of at most {MAX_ODOMETRY_GAP_S:g} s bends the position by < 5 mm)",
-                                  "corrected", float(c.min()), float(c.max())))
     for a, b in inconsistent:
         events.append(QCEvent("odometry_inconsistent", "*", float(t[a]), float(t[b]),
                               f"speed and position disagree over {b - a} odometry samples (max "

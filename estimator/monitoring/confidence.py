@@ -121,10 +121,9 @@ def variant_spread(deltas: pd.DataFrame, *, unit: str = "window_m", confidence: 
         d = deltas.assign(_parameter="")
     per = d.groupby(keys + ["_parameter"], sort=True)["delta_db"]
     p = pd.DataFrame({"q_lo": per.quantile(lo), "q_hi": per.quantile(hi)}).reset_index()
-    single = p.groupby(keys)["_parameter"].transform("size") == 1
     # several parameters: each side from 0, squared for the quadrature; one parameter: its quantiles as they are
-    p["lo2"] = np.where(single, np.nan, np.minimum(p["q_lo"], 0.0) ** 2)
-    p["hi2"] = np.where(single, np.nan, np.maximum(p["q_hi"], 0.0) ** 2)
+    p["lo2"] = np.minimum(p["q_lo"], 0.0) ** 2
+    p["hi2"] = np.maximum(p["q_hi"], 0.0) ** 2
     g = p.groupby(keys, sort=True)
     n = g.size()
     out = pd.DataFrame({"lo_db": np.where(n == 1, g["q_lo"].first(), -np.sqrt(g["lo2"].sum())),
