@@ -59,7 +59,8 @@ def test_sensor_table_reads_and_types_its_columns(table):
     (lambda d: d.assign(sensitivity=d["sensitivity"].where(d["name"] != "ACC_W1L_Z", 1.0)), "does not convert g"),
     (lambda d: d.assign(y=d["y"].where(d["name"] != "ACC_W1L_Z", 0.97)), "left side is at -y"),
     (lambda d: d.assign(wheelset=d["wheelset"].where(d["name"] != "ACC_W1L_Z", 3)), "wheelset must be 1 or 2"),
-    (lambda d: d[d["quantity"] != "speed"], "exactly one speed"),
+    (lambda d: d[~d["quantity"].isin(["speed", "position"])], "no speed and no position channel"),
+    (lambda d: pd.concat([d, d[d["quantity"] == "speed"].assign(name="SPEED2")]), "at most one speed"),
     (lambda d: pd.concat([d, d.iloc[[0]]]), "unique"),
     (lambda d: d.assign(unit=d["unit"].where(d["name"] != "SPEED", "furlong")), "unit of a speed channel"),
 ])
@@ -330,3 +331,71 @@ def test_unit_spellings_of_data_loggers_are_one_unit(tmp_path, file_unit, table_
     write_mdf4(p, ch, HEADER)
     run = read_run(p, table)
     np.testing.assert_allclose(run.acceleration[0], ch["ACC_W1L_Z"][1] * factor, rtol=1e-12)
+
+
+@pytest.mark.parametrize("recorded", ["speed", "position"])
+def test_a_run_recording_only_speed_or_only_position_gets_the_other_derived(tmp_path, recorded):
+    """A logger with only the train's speed (or only its odometer, resolved to 1 cm) still gives the chainage: a
+    50 s run at up to 10 m/s with a 0.2 % odometer scale error, a 1.5 m start offset and three balises, the
+    odometry at 100 Hz. Oracle: the bogie's true chainage and speed between the first and the last balise.
+
+    * position recorded: chainage within 5 mm RMS (half the alignment's 10 mm budget); speed within 0.05 m/s
+      (1 cm over the 0.2 s baseline) on 95 % of the samples and within 0.08 m/s where the acceleration ends (the
+      baseline rounds that corner by about a W / 8 = 0.03 m/s);
+    * speed recorded: the balise event's time stamp is all that pins the chainage, so it is right to the distance
+      travelled in one stamp interval (10 m/s × 10 ms = 0.1 m: the monitoring alignment takes such offsets out).
+    """
+    from estimator.spatial import odometry_track
+    from test_estimator_synthetic import make_run, speed_profile
+
+    other = {"speed": "position", "position": "speed"}[recorded]
+
+    def quantise(ch):
+        t, v, u = ch["POSITION"]
+        ch["POSITION"] = (t, np.round(v, 2), u)
+
+    sr = make_run(tmp_path, duration_s=50.0, faults=quantise, name="full")
+    table = tmp_path / "sensors_one.csv"
+    sensor_table().query("quantity != @other").to_csv(table, index=False)
+    run = read_run(sr.path, table)
+    assert any(f"no {other} channel" in h for h in run.processing)
+    assert run.odometry.names[other].startswith("integrated from" if other == "position" else "derived from")
+    tr = odometry_track(run.odometry, +1)
+    assert not tr.untrusted and not [e for e in tr.events if e.action == "masked"]
+    assert len([e for e in tr.events if e.kind == "odometry_reset"]) == 3
+    pinned = (sr.t >= run.odometry.balise_t[0] + 0.1) & (sr.t <= run.odometry.balise_t[-1])
+    err = tr.chainage_at(sr.t[pinned]) - sr.chainage[pinned]
+    if recorded == "position":
+        assert np.sqrt(np.mean(err ** 2)) < 0.005
+        dv = np.abs(tr.speed_at(sr.t[pinned]) - speed_profile(sr.t, 10.0)[pinned])
+        assert np.percentile(dv, 95) < 0.05 and dv.max() < 0.08
+    else:
+        assert np.max(np.abs(err)) < 10.0 * 0.01
+        np.testing.assert_allclose(tr.speed_at(sr.t[pinned]), speed_profile(sr.t, 10.0)[pinned], atol=0.02)
+
+
+def test_a_derived_speed_still_exposes_an_odometer_jump_and_a_backward_speed_only_run_counts_down(tmp_path):
+    """Without a speed channel the reset steps are rejected by the running median, so a jump no balise explains
+    stays a jump (masked, named); a backward run with an unsigned speed and no position counts chainage down."""
+    from estimator.spatial import odometry_track
+
+    ch = _channels()
+    t, pos, u = ch["POSITION"]
+    ch["POSITION"] = (t, np.where(t >= 2.0, pos + 0.8, pos), u)  # a 0.8 m glitch at 2 s, no balise there
+    table = tmp_path / "nospeed.csv"
+    sensor_table().query("quantity != 'speed'").to_csv(table, index=False)
+    run = read_run(_write(tmp_path, "jump", ch, "parquet"), table)
+    np.testing.assert_allclose(run.odometry.speed[5:-5], 10.0, atol=1e-9)  # a constant 10 m/s, the jump rejected
+    tr = odometry_track(run.odometry, +1)
+    (ev,) = [e for e in tr.events if e.kind == "odometry_jump"]
+    assert "+0.800 m at 2.00 s without a balise event" in ev.reason
+    ch = _channels()
+    to = ch["POSITION"][0]
+    ch["BALISE"] = (np.array([1.0]), np.array([890.0]), "m")
+    table = tmp_path / "nopos.csv"
+    sensor_table().query("quantity != 'position'").to_csv(table, index=False)
+    run = read_run(_write(tmp_path, "back", ch, "parquet"), table, direction="backward")
+    tr = odometry_track(run.odometry, -1)
+    np.testing.assert_allclose(tr.chainage_at(to), 890.0 - 10.0 * (to - 1.0), atol=1e-9)
+    (note,) = [h for h in run.processing if "no position channel" in h]
+    assert "reset to the balise's chainage at each of 1 passage(s)" in note

@@ -2,7 +2,16 @@
 
 Rules (field contract):
 
-* speed and position channels are required (OdometryError naming them);
+* a speed and a position channel; one of them may be absent from the
+  sensor table (many loggers record only the train's speed, or only its
+  odometer), and the other is derived from it and said so in the run's
+  processing history: the position as an odometer makes it, the speed
+  integrated along the direction of travel and reset to each balise's
+  chainage at its passage (without a balise channel the chainage counts
+  from the run's start); the speed from the position's steps, each reset
+  or glitch step replaced by the running median of its neighbours, as a
+  central difference over :data:`DERIVED_SPEED_WINDOW_S`. A channel the
+  table names but the file lacks is an error (OdometryError naming it);
   the balise channel is optional (without it no reset is known);
 * every acceleration channel of the sensor table is looked up by name; a
   missing one is **rejected** and logged (the wheelset it belongs to is
@@ -56,6 +65,13 @@ GRID_ATOL = 0.01
 ODOMETRY_GAP_FACTOR = 1.5
 #: most samples per channel (about 12 h at 1 kHz)
 MAX_SAMPLES = 50_000_000
+#: baseline [s] of the speed derived from a position channel when no speed is recorded: long enough to average an
+#: odometer's resolution (1 cm over 0.2 s is 0.05 m/s) and to hold a median that rejects a reset step, short
+#: against a metro's speed changes (a symmetric baseline passes a constant acceleration unchanged)
+DERIVED_SPEED_WINDOW_S = 0.2
+#: a position step further than this from its neighbours' running median (plus five of their median absolute
+#: deviations, the odometer's resolution) is a reset or a glitch, not motion, when a speed is derived [m]
+DERIVED_STEP_TOLERANCE_M = 0.05
 
 
 def sample_grid(ch: RawChannel, source: str) -> tuple[float, np.ndarray]:
@@ -155,10 +171,62 @@ def _header(raw: RawRecording, source: str, direction: str | None) -> RunHeader:
                      extra={k: v for k, v in h.items() if k not in known})
 
 
-def _odometry(raw: RawRecording, sensors: pd.DataFrame, source: str) -> Odometry:
+def _speed_from_position(t: np.ndarray, pos: np.ndarray) -> np.ndarray:
+    """Speed along chainage [m/s] from an odometer position (module docstring): reset and glitch steps replaced by
+    the running median of their neighbours, then a central difference over :data:`DERIVED_SPEED_WINDOW_S`."""
+    from scipy.ndimage import median_filter
+
+    ok = np.isfinite(pos)
+    p = np.interp(t, t[ok], pos[ok]) if not ok.all() else pos
+    step = np.diff(p)
+    dt = np.diff(t)
+    w = 2 * max(2, int(round(DERIVED_SPEED_WINDOW_S / np.median(dt) / 2))) + 1
+    rate = median_filter(step / dt, size=w, mode="nearest")
+    dev = step - rate * dt
+    mad = float(np.median(np.abs(dev - np.median(dev))))
+    odd = np.abs(dev) > DERIVED_STEP_TOLERANCE_M + 5 * mad
+    step = np.where(odd, rate * dt, step)
+    d = np.concatenate([[0.0], np.cumsum(step)])
+    h = DERIVED_SPEED_WINDOW_S / 2
+    a, b = np.maximum(t - h, t[0]), np.minimum(t + h, t[-1])
+    return (np.interp(b, t, d) - np.interp(a, t, d)) / (b - a)
+
+
+def _position_from_speed(t: np.ndarray, speed: np.ndarray, balise_t: np.ndarray, balise_c: np.ndarray,
+                         travel_sign: int) -> np.ndarray:
+    """An odometer's position from a speed channel (module docstring): the distance integrated along the direction
+    of travel (trapezoid; the speed's prevailing sign is taken as that direction, whatever the encoder's convention),
+    reset to each balise's chainage plus the distance counted since its passage."""
+    ok = np.isfinite(speed)
+    v = np.interp(t, t[ok], speed[ok]) if not ok.all() else speed
+    moving = np.abs(v) > 0.5
+    along = -v if moving.any() and np.median(v[moving]) < 0 else v
+    dist = np.concatenate([[0.0], np.cumsum(0.5 * (along[1:] + along[:-1]) * np.diff(t))])
+    pos = travel_sign * dist
+    for tb, cb in sorted(zip(balise_t, balise_c)):
+        j = int(np.searchsorted(t, tb - 1e-9))  # the first sample after the passage, as a unit stamps its reset
+        if j < t.size:
+            pos[j:] = cb + travel_sign * (dist[j:] - np.interp(tb, t, dist))
+    return pos
+
+
+def _nan_stretches(ch: RawChannel) -> list[tuple[float, float, str]]:
+    """Stretches a channel holds no finite value for, between the finite samples around them."""
+    from estimator.qc import runs_of
+
+    out = []
+    for a, b in runs_of(~np.isfinite(ch.values)):
+        out.append((float(ch.t[max(a - 1, 0)]), float(ch.t[min(b, ch.t.size - 1)]), ch.name))
+    return out
+
+
+def _odometry(raw: RawRecording, sensors: pd.DataFrame, source: str, direction: str) -> tuple[Odometry, str]:
+    """The run's odometry, and a processing note when one of speed and position is derived from the other."""
     rows = {q: sensors[sensors["quantity"] == q] for q in ("speed", "position", "balise")}
     got, gaps = {}, []
     for q in ("speed", "position"):
+        if not len(rows[q]):
+            continue
         name = str(rows[q]["name"].iloc[0])
         _unusable(raw, name, source, OdometryError)
         if name not in raw.channels:
@@ -166,17 +234,11 @@ def _odometry(raw: RawRecording, sensors: pd.DataFrame, source: str) -> Odometry
                                 f"file has {sorted(raw.channels)}")
         ch = raw.channels[name]
         _unit_check(ch, rows[q].iloc[0], source)
-        if ch.values.size < 2 or not np.isfinite(ch.values).any():
-            raise OdometryError(f"{source}: the {q} channel {name!r} holds no finite values")
+        if ch.values.size < 2 or np.isfinite(ch.values).sum() < 2:
+            raise OdometryError(f"{source}: the {q} channel {name!r} holds fewer than two finite values")
         gaps += _odometry_gaps(ch, source)
         got[q] = (name, ch, float(rows[q]["sensitivity"].iloc[0]))
-    (sn, sp, ss), (pn, pp, ps) = got["speed"], got["position"]
-    t = pp.t
-    speed = sp.values * ss
-    if sp.t.shape != t.shape or not np.allclose(sp.t, t, rtol=0, atol=1e-9):
-        speed = np.interp(t, sp.t, speed)
-        log.info("%s: speed %r resampled onto the time base of position %r", source, sn, pn)
-    bt, bv, names = np.zeros(0), np.zeros(0), {"speed": sn, "position": pn}
+    bt, bv, names = np.zeros(0), np.zeros(0), {q: n for q, (n, _, _) in got.items()}
     if len(rows["balise"]):
         bn = str(rows["balise"]["name"].iloc[0])
         _unusable(raw, bn, source, OdometryError)
@@ -188,18 +250,45 @@ def _odometry(raw: RawRecording, sensors: pd.DataFrame, source: str) -> Odometry
             names["balise"] = bn
         else:
             log.warning("%s: balise channel %r is not in the file; no odometer reset is known", source, bn)
+    note = ""
+    if "position" not in got:
+        sn, sp, ss = got["speed"]
+        t, speed = sp.t, sp.values * ss
+        position = _position_from_speed(t, speed, bt, bv, 1 if direction == "forward" else -1)
+        gaps += _nan_stretches(sp)  # the distance across them is interpolated: odometry_track judges the gap
+        names["position"] = f"integrated from {sn}"
+        note = (f"no position channel: the position integrated from speed {sn!r} along the direction of travel, "
+                + (f"reset to the balise's chainage at each of {bt.size} passage(s)" if bt.size else
+                   "counted from the run's start (no balise channel: chainage relative to the start)"))
+    else:
+        pn, pp, ps = got["position"]
+        t, position = pp.t, pp.values * ps
+        if "speed" in got:
+            sn, sp, ss = got["speed"]
+            speed = sp.values * ss
+            if sp.t.shape != t.shape or not np.allclose(sp.t, t, rtol=0, atol=1e-9):
+                speed = np.interp(t, sp.t, speed)
+                log.info("%s: speed %r resampled onto the time base of position %r", source, sn, pn)
+        else:
+            speed = _speed_from_position(t, position)
+            gaps += _nan_stretches(pp)  # the speed across them is the chord's: odometry_track judges the gap
+            names["speed"] = f"derived from {pn}"
+            note = (f"no speed channel: the speed derived from position {pn!r} (central difference over "
+                    f"{DERIVED_SPEED_WINDOW_S:g} s, reset and glitch steps replaced by the running median)")
+    if note:
+        log.info("%s: %s", source, note)
     spans: dict[tuple[float, float], list[str]] = {}
     for g0, g1, name in gaps:  # both channels of one logger lose the same stretch: one gap
         spans.setdefault((g0, g1), []).append(name)
-    return Odometry(t=t, speed=speed, position=pp.values * ps, balise_t=bt, balise_chainage=bv, names=names,
-                    gaps=tuple((g0, g1, ", ".join(n)) for (g0, g1), n in sorted(spans.items())))
+    return Odometry(t=t, speed=speed, position=position, balise_t=bt, balise_chainage=bv, names=names,
+                    gaps=tuple((g0, g1, ", ".join(n)) for (g0, g1), n in sorted(spans.items()))), note
 
 
 def assemble_run(raw: RawRecording, sensors: pd.DataFrame, source: str, fmt: str, *, fs: float | None = None,
                  direction: str | None = None) -> Run:
     """Build a :class:`Run` from a reader's output and a validated sensor table (module docstring)."""
     header = _header(raw, source, direction)
-    odometry = _odometry(raw, sensors, source)
+    odometry, derived = _odometry(raw, sensors, source, header.direction)
     acc_rows = sensors[sensors["quantity"] == "acceleration"].reset_index(drop=True)
     rejected: list[QCEvent] = []
     present, rates, grids = [], {}, {}
@@ -265,5 +354,5 @@ def assemble_run(raw: RawRecording, sensors: pd.DataFrame, source: str, fmt: str
               units=tuple(str(u) for u in table["unit"]), odometry=odometry, rejected=tuple(rejected + gaps),
               processing=(f"read {source} ({fmt}): {len(keep)} acceleration channels at {fs_run:g} Hz, "
                           f"{n / fs_run:.2f} s; odometry {odometry.names}; {odometry.balise_t.size} balise event(s); "
-                          f"{len(rejected)} channel(s) rejected{lost}",))
+                          f"{len(rejected)} channel(s) rejected{lost}", *((derived,) if derived else ())))
     return run

@@ -94,8 +94,8 @@ def check_sensors(df: pd.DataFrame, source: str = "<sensor table>") -> pd.DataFr
     """Validate a sensor table (see the module docstring); returns a clean copy with typed columns.
 
     Rules: every column present; unique non-empty names; ``quantity`` in
-    :data:`QUANTITIES`; exactly one speed and one position channel, at most one
-    balise channel; at least two acceleration channels; accelerations have
+    :data:`QUANTITIES`; at most one speed, one position and one balise channel,
+    and a speed or a position channel (the estimator derives the other); at least two acceleration channels; accelerations have
     ``wheelset`` 1/2, ``side`` L/R, ``direction`` x/y/z, finite ``x, y, z`` with
     the mounting point on its side of the car (``y <= 0`` for L), a finite
     non-zero sensitivity and a unit of their quantity; a sensitivity more than
@@ -125,11 +125,13 @@ def check_sensors(df: pd.DataFrame, source: str = "<sensor table>") -> pd.DataFr
         raise SensorTableError(f"{source}: row {i + 2} ({df['name'][i]!r}): quantity must be one of {QUANTITIES}, "
                                f"got {df['quantity'][i]!r}")
     counts = df["quantity"].value_counts()
-    for q, lo, hi in (("speed", 1, 1), ("position", 1, 1), ("balise", 0, 1)):
+    for q in ("speed", "position", "balise"):
         n = int(counts.get(q, 0))
-        if not lo <= n <= hi:
-            raise SensorTableError(f"{source}: {'exactly one' if lo == hi else 'at most one'} {q} channel expected, "
-                                   f"found {n}")
+        if n > 1:
+            raise SensorTableError(f"{source}: at most one {q} channel expected, found {n}")
+    if not counts.get("speed", 0) and not counts.get("position", 0):
+        raise SensorTableError(f"{source}: no speed and no position channel; the run's chainage needs at least one "
+                               "of them (both preferred: the other is derived from the one recorded)")
     if int(counts.get("acceleration", 0)) < 2:
         raise SensorTableError(f"{source}: at least two acceleration channels are needed (two vertical per wheelset "
                                f"for the full models), found {int(counts.get('acceleration', 0))}")
