@@ -399,3 +399,27 @@ def test_a_derived_speed_still_exposes_an_odometer_jump_and_a_backward_speed_onl
     np.testing.assert_allclose(tr.chainage_at(to), 890.0 - 10.0 * (to - 1.0), atol=1e-9)
     (note,) = [h for h in run.processing if "no position channel" in h]
     assert "reset to the balise's chainage at each of 1 passage(s)" in note
+
+
+@pytest.mark.parametrize("recorded", ["SPEED", "POSITION"])
+@pytest.mark.parametrize("lost, action", [(5, "corrected"), (60, "masked")])
+def test_nan_in_the_one_odometry_channel_is_a_gap_judged_like_lost_samples(tmp_path, recorded, lost, action):
+    """NaN in the only odometry channel from 1.5 s: the derived quantity is interpolated across, and the stretch is
+    an odometry gap, bridged when short (0.05 s) and masked when long (0.6 s), as for samples the logger lost."""
+    from estimator.spatial import odometry_track
+
+    ch = _channels()
+    t, v, u = ch[recorded]
+    v = v.copy()
+    v[150:150 + lost] = np.nan
+    ch[recorded] = (t, v, u)
+    table = tmp_path / "one.csv"
+    dropped = "POSITION" if recorded == "SPEED" else "SPEED"
+    sensor_table().query("name != @dropped").to_csv(table, index=False)
+    run = read_run(_write(tmp_path, "nan", ch, "parquet"), table)
+    ((g0, g1, name),) = run.odometry.gaps
+    assert name == recorded and (g0, g1) == (pytest.approx(1.49), pytest.approx(1.5 + lost / 100))
+    tr = odometry_track(run.odometry, +1)
+    (ev,) = [e for e in tr.events if e.kind == "odometry_gap"]
+    assert ev.action == action
+    np.testing.assert_allclose(tr.chainage_at(np.array([1.0, 2.5])), [110.0, 125.0], atol=1e-6)
