@@ -276,7 +276,8 @@ def _odometry(raw: RawRecording, sensors: pd.DataFrame, source: str, direction: 
             note = (f"no speed channel: the speed derived from position {pn!r} (central difference over "
                     f"{DERIVED_SPEED_WINDOW_S:g} s, reset and glitch steps replaced by the running median)")
     if note:
-        log.info("%s: %s", source, note)
+        # a chainage counted from the start cannot be placed on the line (curves, sections, trolley): say so loudly
+        (log.warning if "relative to the start" in note else log.info)("%s: %s", source, note)
     spans: dict[tuple[float, float], list[str]] = {}
     for g0, g1, name in gaps:  # both channels of one logger lose the same stretch: one gap
         spans.setdefault((g0, g1), []).append(name)

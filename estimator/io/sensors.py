@@ -95,7 +95,8 @@ def check_sensors(df: pd.DataFrame, source: str = "<sensor table>") -> pd.DataFr
 
     Rules: every column present; unique non-empty names; ``quantity`` in
     :data:`QUANTITIES`; at most one speed, one position and one balise channel,
-    and a speed or a position channel (the estimator derives the other); at least two acceleration channels; accelerations have
+    and a speed or a position channel (the estimator derives the other); at
+    least two acceleration channels; accelerations have
     ``wheelset`` 1/2, ``side`` L/R, ``direction`` x/y/z, finite ``x, y, z`` with
     the mounting point on its side of the car (``y <= 0`` for L), a finite
     non-zero sensitivity and a unit of their quantity; a sensitivity more than
