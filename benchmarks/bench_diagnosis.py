@@ -13,6 +13,7 @@ budgets.
 
 from __future__ import annotations
 
+import _checkout  # noqa: F401  (this checkout's packages first: measure the code beside this script)
 import os
 import sys
 import tempfile

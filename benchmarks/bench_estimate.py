@@ -18,6 +18,7 @@ with the multiples of real time and the speed ratio.
 
 from __future__ import annotations
 
+import _checkout  # noqa: F401  (this checkout's packages first: measure the code beside this script)
 import argparse
 import logging
 import sys
@@ -28,8 +29,6 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))  # run from anywhere (the package may not be installed)
-sys.path.insert(0, str(ROOT / "tests"))
 
 
 def _one_core() -> None:

@@ -14,13 +14,13 @@ test band's 500 Hz model.
 
 from __future__ import annotations
 
+import _checkout  # noqa: F401  (this checkout's packages first: measure the code beside this script)
 import glob
 import os
 import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 TARGET_S = 60.0
 

@@ -23,6 +23,7 @@ The machine's cores may be shared with other work; the script prints the load av
 
 from __future__ import annotations
 
+import _checkout  # noqa: F401  (this checkout's packages first: measure the code beside this script)
 import argparse
 import logging
 import os
@@ -33,8 +34,6 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "tests"))
 
 FLEET_TRAINS = 20
 HOURS_PER_DAY = 18.0

@@ -5,6 +5,7 @@ Prints, per scenario, the time to solve the models and plan the campaign,
 the time to synthesise and write all files, and the total.
 """
 
+import _checkout  # noqa: F401  (this checkout's packages first: measure the code beside this script)
 import tempfile
 import time
 

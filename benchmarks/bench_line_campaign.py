@@ -13,6 +13,7 @@ files and the truth. The per-run dynamics is benchmarked on its own by
 
 from __future__ import annotations
 
+import _checkout  # noqa: F401  (this checkout's packages first: measure the code beside this script)
 import argparse
 import json
 import os

@@ -12,6 +12,7 @@ wall time (the machine is shared).
 
 from __future__ import annotations
 
+import _checkout  # noqa: F401  (this checkout's packages first: measure the code beside this script)
 import argparse
 import os
 import sys
@@ -24,7 +25,6 @@ os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))  # run from anywhere (the package may not be installed)
 
 GOAL_RUN_S = 30.0
 

@@ -28,6 +28,7 @@ Delta f [%] and Delta zeta [%] (relative).
 
 from __future__ import annotations
 
+import _checkout  # noqa: F401  (this checkout's packages first: measure the code beside this script)
 import argparse
 import json
 import logging

@@ -22,6 +22,7 @@ Run: ``python benchmarks/bench_robustness.py [--models 1000] [--loop-models 3]``
 
 from __future__ import annotations
 
+import _checkout  # noqa: F401  (this checkout's packages first: measure the code beside this script)
 import argparse
 import os
 import time

@@ -26,6 +26,7 @@ uncertainty runs; the defaults (25 perturbed models, 2 uncertainty runs) take ~1
 
 from __future__ import annotations
 
+import _checkout  # noqa: F401  (this checkout's packages first: measure the code beside this script)
 import argparse
 import logging
 import shutil
@@ -39,7 +40,6 @@ import numpy as np
 import pandas as pd
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests"))
 
 SECTION = (400.0, 800.0)
 PATCH_BODY = (510.0, 670.0)  # corrugation patch C1_low (rail R, 500-680 m) without its 10 m tapers

@@ -23,6 +23,7 @@ moving loads, the linearised Hertz spring at the static load):
 
 from __future__ import annotations
 
+import _checkout  # noqa: F401  (this checkout's packages first: measure the code beside this script)
 import argparse
 import sys
 from dataclasses import replace
@@ -30,7 +31,6 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 FRAME_FREQS_HZ = np.array([15.0, 20.0, 27.0, 32.0, 36.0, 40.0, 45.0, 50.0, 56.0, 63.0, 80.0, 100.0])
