@@ -250,16 +250,17 @@ def _odometry(raw: RawRecording, sensors: pd.DataFrame, source: str, direction: 
             names["balise"] = bn
         else:
             log.warning("%s: balise channel %r is not in the file; no odometer reset is known", source, bn)
-    note = ""
+    note, relative = "", False
     if "position" not in got:
         sn, sp, ss = got["speed"]
         t, speed = sp.t, sp.values * ss
         position = _position_from_speed(t, speed, bt, bv, 1 if direction == "forward" else -1)
         gaps += _nan_stretches(sp)  # the distance across them is interpolated: odometry_track judges the gap
         names["position"] = f"integrated from {sn}"
+        relative = not bt.size
         note = (f"no position channel: the position integrated from speed {sn!r} along the direction of travel, "
-                + (f"reset to the balise's chainage at each of {bt.size} passage(s)" if bt.size else
-                   "counted from the run's start (no balise channel: chainage relative to the start)"))
+                + ("counted from the run's start (no balise channel: chainage relative to the start)" if relative
+                   else f"reset to the balise's chainage at each of {bt.size} passage(s)"))
     else:
         pn, pp, ps = got["position"]
         t, position = pp.t, pp.values * ps
@@ -277,7 +278,7 @@ def _odometry(raw: RawRecording, sensors: pd.DataFrame, source: str, direction: 
                     f"{DERIVED_SPEED_WINDOW_S:g} s, reset and glitch steps replaced by the running median)")
     if note:
         # a chainage counted from the start cannot be placed on the line (curves, sections, trolley): say so loudly
-        (log.warning if "relative to the start" in note else log.info)("%s: %s", source, note)
+        (log.warning if relative else log.info)("%s: %s", source, note)
     spans: dict[tuple[float, float], list[str]] = {}
     for g0, g1, name in gaps:  # both channels of one logger lose the same stretch: one gap
         spans.setdefault((g0, g1), []).append(name)
