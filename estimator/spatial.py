@@ -135,7 +135,13 @@ def odometry_track(odo: Odometry, travel_sign: int, *, max_scale_error: float = 
     if ok.sum() < 2:
         raise OdometryError(f"{source}: the position channel holds fewer than two finite values")
     if not ok.all():
-        pos = np.interp(t, t[ok], pos[ok])  # gaps in the position channel only; QC masks the time they cover
+        pos = np.interp(t, t[ok], pos[ok])  # NaN stretches are odometry gaps (odo.gaps): judged below
+    speed = odo.speed
+    ok = np.isfinite(speed)
+    if ok.sum() < 2:
+        raise OdometryError(f"{source}: the speed channel holds fewer than two finite values")
+    if not ok.all():
+        speed = np.interp(t, t[ok], speed[ok])  # likewise; a NaN speed would pass the jump test and the gate
     resets = _resets(odo, travel_sign, source)
     # 1. raw travelled distance: remove each reset jump (step minus the step the speed explains)
     d = pos.astype(float).copy()
@@ -143,7 +149,7 @@ def odometry_track(odo: Odometry, travel_sign: int, *, max_scale_error: float = 
     step = np.diff(pos)
     # the speed at either end of a step bounds the distance travelled in it (whichever end a logger's odometer
     # integrates from, and across a gap in the channels); the trapezoid is the expected step
-    v0, v1, dt = np.abs(odo.speed[:-1]), np.abs(odo.speed[1:]), np.diff(t)
+    v0, v1, dt = np.abs(speed[:-1]), np.abs(speed[1:]), np.diff(t)
     expected = travel_sign * 0.5 * (v0 + v1) * dt
     along, lo, hi = travel_sign * step, np.minimum(v0, v1) * dt, np.maximum(v0, v1) * dt
     excess = np.maximum(lo - along, along - hi) > JUMP_TOLERANCE_M + 0.05 * hi
@@ -237,7 +243,7 @@ def odometry_track(odo: Odometry, travel_sign: int, *, max_scale_error: float = 
         events.append(QCEvent("odometry_reset", "*", tb, tb,
                               f"balise at {cb:.2f} m: odometer jump {jump:+.3f} m corrected "
                               f"(scale distributed over the stretch before)", "corrected", cb, cb))
-    speed = odo.speed * sc
+    speed = speed * sc
     moving = np.abs(speed) > 0.5
     if travel_sign < 0 and moving.any() and np.median(speed[moving]) < 0:
         speed = -speed  # a speed channel signed along chainage: make it positive along the direction of travel

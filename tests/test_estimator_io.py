@@ -401,11 +401,13 @@ def test_a_derived_speed_still_exposes_an_odometer_jump_and_a_backward_speed_onl
     assert "reset to the balise's chainage at each of 1 passage(s)" in note
 
 
+@pytest.mark.parametrize("both", [False, True], ids=["only-channel", "both-recorded"])
 @pytest.mark.parametrize("recorded", ["SPEED", "POSITION"])
 @pytest.mark.parametrize("lost, action", [(5, "corrected"), (60, "masked")])
-def test_nan_in_the_one_odometry_channel_is_a_gap_judged_like_lost_samples(tmp_path, recorded, lost, action):
-    """NaN in the only odometry channel from 1.5 s: the derived quantity is interpolated across, and the stretch is
-    an odometry gap, bridged when short (0.05 s) and masked when long (0.6 s), as for samples the logger lost."""
+def test_nan_in_an_odometry_channel_is_a_gap_judged_like_lost_samples(tmp_path, recorded, lost, action, both):
+    """NaN in an odometry channel from 1.5 s, whether it is the only one or the other is recorded too: the stretch
+    is an odometry gap, bridged when short (0.05 s) and masked when long (0.6 s), as for samples the logger lost;
+    the channel is interpolated across, so no NaN speed slips past the jump test and the speed gate unflagged."""
     from estimator.spatial import odometry_track
 
     ch = _channels()
@@ -414,7 +416,7 @@ def test_nan_in_the_one_odometry_channel_is_a_gap_judged_like_lost_samples(tmp_p
     v[150:150 + lost] = np.nan
     ch[recorded] = (t, v, u)
     table = tmp_path / "one.csv"
-    dropped = "POSITION" if recorded == "SPEED" else "SPEED"
+    dropped = "NONE" if both else "POSITION" if recorded == "SPEED" else "SPEED"
     sensor_table().query("name != @dropped").to_csv(table, index=False)
     run = read_run(_write(tmp_path, "nan", ch, "parquet"), table)
     ((g0, g1, name),) = run.odometry.gaps
@@ -422,4 +424,10 @@ def test_nan_in_the_one_odometry_channel_is_a_gap_judged_like_lost_samples(tmp_p
     tr = odometry_track(run.odometry, +1)
     (ev,) = [e for e in tr.events if e.kind == "odometry_gap"]
     assert ev.action == action
+    assert not [e for e in tr.events if e.kind in ("odometry_jump", "odometry_inconsistent")]
     np.testing.assert_allclose(tr.chainage_at(np.array([1.0, 2.5])), [110.0, 125.0], atol=1e-6)
+    np.testing.assert_allclose(tr.speed_at(np.array([1.5 + lost / 200])), 10.0, atol=1e-9)
+    checked = check_run(run, tr)
+    inside = (run.t > g0) & (run.t < g1)
+    assert checked.mask.masked[:, inside].all() == (action == "masked")
+    assert not checked.mask.masked[:, run.t < g0 - 0.1].any()

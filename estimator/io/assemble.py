@@ -236,7 +236,9 @@ def _odometry(raw: RawRecording, sensors: pd.DataFrame, source: str, direction: 
         _unit_check(ch, rows[q].iloc[0], source)
         if ch.values.size < 2 or np.isfinite(ch.values).sum() < 2:
             raise OdometryError(f"{source}: the {q} channel {name!r} holds fewer than two finite values")
-        gaps += _odometry_gaps(ch, source)
+        # NaN in a recorded channel is a stretch it does not cover, like lost samples: odometry_track bridges a
+        # short one (the other quantity or the chord carries it) and masks a long one
+        gaps += _odometry_gaps(ch, source) + _nan_stretches(ch)
         got[q] = (name, ch, float(rows[q]["sensitivity"].iloc[0]))
     bt, bv, names = np.zeros(0), np.zeros(0), {q: n for q, (n, _, _) in got.items()}
     if len(rows["balise"]):
@@ -255,7 +257,6 @@ def _odometry(raw: RawRecording, sensors: pd.DataFrame, source: str, direction: 
         sn, sp, ss = got["speed"]
         t, speed = sp.t, sp.values * ss
         position = _position_from_speed(t, speed, bt, bv, 1 if direction == "forward" else -1)
-        gaps += _nan_stretches(sp)  # the distance across them is interpolated: odometry_track judges the gap
         names["position"] = f"integrated from {sn}"
         relative = not bt.size
         note = (f"no position channel: the position integrated from speed {sn!r} along the direction of travel, "
@@ -272,7 +273,6 @@ def _odometry(raw: RawRecording, sensors: pd.DataFrame, source: str, direction: 
                 log.info("%s: speed %r resampled onto the time base of position %r", source, sn, pn)
         else:
             speed = _speed_from_position(t, position)
-            gaps += _nan_stretches(pp)  # the speed across them is the chord's: odometry_track judges the gap
             names["speed"] = f"derived from {pn}"
             note = (f"no speed channel: the speed derived from position {pn!r} (central difference over "
                     f"{DERIVED_SPEED_WINDOW_S:g} s, reset and glitch steps replaced by the running median)")
