@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -431,3 +433,24 @@ def test_nan_in_an_odometry_channel_is_a_gap_judged_like_lost_samples(tmp_path, 
     inside = (run.t > g0) & (run.t < g1)
     assert checked.mask.masked[:, inside].all() == (action == "masked")
     assert not checked.mask.masked[:, run.t < g0 - 0.1].any()
+
+
+def test_a_balise_event_without_a_chainage_is_named_and_its_reset_masked_not_silently_dropped(tmp_path, table,
+                                                                                               caplog):
+    """Two balise passages, the first (1 s) logged without a chainage (NaN), at which the odometer was reset 0.5 m
+    forward: the reading names the event and its time, and the reset it cannot explain is masked as an odometer
+    jump up to the next balise (2 s), not bridged as if the odometer were right."""
+    from estimator.spatial import odometry_track
+
+    ch = _channels()
+    t, pos, u = ch["POSITION"]
+    ch["POSITION"] = (t, np.where(t >= 1.0 - 1e-9, pos + 0.5, pos), u)
+    ch["BALISE"] = (np.array([1.0, 2.0]), np.array([np.nan, 120.5]), "m")
+    with caplog.at_level(logging.WARNING, logger="estimator"):
+        run = read_run(_write(tmp_path, "nanbalise", ch, "parquet"), table)
+    assert "'BALISE': 1 event(s) without a finite chainage ignored (at 1.000 s)" in caplog.text
+    assert run.odometry.balise_t.tolist() == [2.0]
+    tr = odometry_track(run.odometry, +1)
+    (ev,) = [e for e in tr.events if e.kind == "odometry_jump"]
+    assert "+0.500 m at 1.00 s without a balise event" in ev.reason and ev.action == "masked"
+    assert (ev.t_start, ev.t_end) == (pytest.approx(0.0), pytest.approx(2.0))

@@ -247,7 +247,13 @@ def _odometry(raw: RawRecording, sensors: pd.DataFrame, source: str, direction: 
         if bn in raw.channels:
             bc = raw.channels[bn]
             _unit_check(bc, rows["balise"].iloc[0], source)
-            ok = np.isfinite(bc.values)
+            ok = np.isfinite(bc.values) & np.isfinite(bc.t)
+            if not ok.all():
+                # a passage whose chainage the logger could not decode resets the odometer to an unknown value:
+                # odometry_track then sees an unexplained jump there and masks it up to the next balise
+                log.warning("%s: balise channel %r: %d event(s) without a finite chainage ignored (at %s s); the "
+                            "odometer reset there is unexplained", source, bn, int((~ok).sum()),
+                            ", ".join(f"{x:.3f}" for x in bc.t[~ok][:10]))
             bt, bv = bc.t[ok], bc.values[ok] * float(rows["balise"]["sensitivity"].iloc[0])
             names["balise"] = bn
         else:
