@@ -182,6 +182,21 @@ def test_line_and_trolley_files(tmp_path):
     assert tr["roughness_m"].tolist() == pytest.approx([1e-6, 2e-6, 3e-6, 4e-6]) and set(tr["rail"]) == {"L", "R"}
 
 
+def test_unreadable_trolley_rows_are_named_and_a_repeated_chainage_is_refused(tmp_path, caplog):
+    """A trolley row with a blank roughness and one with a text chainage are left out with their file line numbers
+    in a WARNING (the comparison sees a gap there); a chainage given twice on one rail is a named error."""
+    pd.DataFrame({"chainage_m": ["0.000", "0.001", "x", "0.003", "0.000"], "rail": ["L", "L", "L", "L", "R"],
+                  "roughness_um": [1.0, None, 3.0, 4.0, 5.0]}).to_csv(tmp_path / "t.csv", index=False)
+    with caplog.at_level(logging.WARNING, logger="estimator"):
+        tr = read_trolley(tmp_path / "t.csv")
+    assert "2 trolley row(s) without a numeric chainage or roughness left out (file line(s) 3, 4)" in caplog.text
+    assert tr["chainage_m"].tolist() == pytest.approx([0.0, 0.003, 0.0])
+    pd.DataFrame({"chainage_m": [0.0, 0.001, 0.001, 0.0], "rail": ["L", "L", "L", "R"],
+                  "roughness_um": [1.0, 2.0, 2.5, 3.0]}).to_csv(tmp_path / "twice.csv", index=False)
+    with pytest.raises(RunFileError, match=r"rail L: chainage 0.0010 m is given 2 times \(1 repeated"):
+        read_trolley(tmp_path / "twice.csv")
+
+
 # ------------------------------------------------------------------ what real data loggers write
 def _without(ch, name, i0, i1):
     t, v, u = ch[name]

@@ -205,7 +205,10 @@ def read_line(path) -> LineDescription:
 def read_trolley(path) -> pd.DataFrame:
     """Read a trolley reference file: ``chainage_m, rail, roughness_um`` → columns in SI plus ``roughness_um``.
 
-    Returns a frame with ``chainage_m, rail, roughness_m`` sorted by rail and chainage.
+    Returns a frame with ``chainage_m, rail, roughness_m`` sorted by rail and chainage. Rows whose chainage or
+    roughness is not a number are left out and named (file line numbers) in a WARNING: the reference comparison
+    then sees a gap there and does not bridge it. A chainage given twice on one rail (two passes pasted into one
+    file) is a RunFileError, since which of the two readings holds cannot be told.
     """
     p = Path(path)
     if not p.is_file():
@@ -220,4 +223,16 @@ def read_trolley(path) -> pd.DataFrame:
         raise RunFileError(f"{p}: rail must be L or R, got {bad}")
     out = pd.DataFrame({"chainage_m": pd.to_numeric(df["chainage_m"], errors="coerce"), "rail": df["rail"],
                         "roughness_m": pd.to_numeric(df["roughness_um"], errors="coerce") * 1e-6})
-    return out.dropna().sort_values(["rail", "chainage_m"]).reset_index(drop=True)
+    bad_rows = out.index[out.isna().any(axis=1)]
+    if len(bad_rows):
+        log.warning("%s: %d trolley row(s) without a numeric chainage or roughness left out (file line(s) %s%s); "
+                    "the comparison treats them as a gap", p, len(bad_rows),
+                    ", ".join(str(i + 2) for i in bad_rows[:10]), ", ..." if len(bad_rows) > 10 else "")
+    out = out.dropna().sort_values(["rail", "chainage_m"], kind="stable").reset_index(drop=True)
+    twice = out[out.duplicated(["rail", "chainage_m"], keep=False)]
+    if len(twice):
+        counts = twice.groupby(["rail", "chainage_m"], sort=True).size()
+        (r, x), k = counts.index[0], int(counts.iloc[0])
+        raise RunFileError(f"{p}: rail {r}: chainage {x:.4f} m is given {k} times ({len(counts)} repeated "
+                           "chainage(s) in all); a trolley record holds one reading per rail and chainage")
+    return out
