@@ -166,6 +166,15 @@ def check_run(run: Run, track: OdometryTrack, config: EstimatorConfig = Estimato
     untrusted = np.zeros(n, bool)
     for t0, t1 in track.untrusted:
         untrusted |= (t >= t0) & (t <= t1)
+    # beyond the odometry's first and last sample the chainage and speed would be held constant: not measured
+    # (within one odometry interval of them the hold is the sampling's own resolution, as between two samples)
+    step = float(np.median(np.diff(track.t))) if track.t.size > 1 else 0.0
+    beyond = (t < track.t[0] - step) | (t > track.t[-1] + step)
+    if beyond.any():
+        events.extend(_events("odometry_gap", "*", beyond, t, chain,
+                              f"no odometry sample (the odometry covers {track.t[0]:.3f} to {track.t[-1]:.3f} s): "
+                              "the chainage there is not measured", merge))
+        untrusted |= beyond
     for flag, kind, reason in (
             (still, "standstill", f"|speed| below {config.standstill_m_s:g} m/s"),
             (slow, "low_speed", f"speed below the gate {config.speed_gate_m_s:g} m/s"),

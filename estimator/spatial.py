@@ -100,6 +100,10 @@ class OdometryTrack:
         return np.interp(t, self.t, self.speed)
 
 
+def _median_step(t: np.ndarray) -> float:
+    return float(np.median(np.diff(t))) if t.size > 1 else 0.0
+
+
 def _resets(odo: Odometry, travel_sign: int, source: str) -> list[tuple[int, float, float]]:
     """(sample index just after the reset, balise time, reference chainage) for each balise event."""
     out = []
@@ -177,9 +181,26 @@ def odometry_track(odo: Odometry, travel_sign: int, *, max_scale_error: float = 
             inconsistent.append((a, b))
     # 2. pin the passages: right after a reset the odometer reads the balise's chainage plus the distance
     #    counted since the passage, so the sample after the reset is an absolute chainage
-    anchors = sorted(((float(d[j]), float(pos[j]), float(t[j]), jump) for (j, _, _), jump in zip(resets, jumps)),
-                     key=lambda a: a[2])
     events: list[QCEvent] = []
+    anchors = []
+    for (j, tb, cb), jump in zip(resets, jumps):
+        # the reading a reset odometer shows: the balise's chainage plus the distance travelled since the passage.
+        # A reading off by more than the jump tolerance means the unit did not reset (or reset elsewhere): the
+        # balise is the absolute reference, so it pins the chainage, to the distance of one stamp interval
+        since = abs(float(speed[j])) * max(float(t[j]) - tb, 0.0)
+        reset_reading = cb + travel_sign * since
+        off = float(pos[j]) - reset_reading
+        pinned = float(pos[j])
+        if abs(off) > JUMP_TOLERANCE_M + 0.05 * since + abs(float(speed[j])) * _median_step(t):
+            pinned = reset_reading
+            c = float(np.interp(tb, t, pos))
+            events.append(QCEvent("odometry_not_reset", "*", tb, tb,
+                                  f"balise at {cb:.2f} m: the odometer reads {float(pos[j]):.2f} m after the passage "
+                                  f"({off:+.2f} m off; it did not reset): the chainage is pinned to the balise",
+                                  "corrected", min(c, cb), max(c, cb)))
+            log.warning("%s: %s", source, events[-1].describe())
+        anchors.append((float(d[j]), pinned, float(t[j]), jump))
+    anchors.sort(key=lambda a: a[2])
     untrusted: list[tuple[float, float]] = []
     for g0, g1, name in odo.gaps:
         c = np.interp([g0, g1], t, pos)

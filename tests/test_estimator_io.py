@@ -469,3 +469,66 @@ def test_a_balise_event_without_a_chainage_is_named_and_its_reset_masked_not_sil
     (ev,) = [e for e in tr.events if e.kind == "odometry_jump"]
     assert "+0.500 m at 1.00 s without a balise event" in ev.reason and ev.action == "masked"
     assert (ev.t_start, ev.t_end) == (pytest.approx(0.0), pytest.approx(2.0))
+
+
+@pytest.mark.parametrize("end", ["head", "tail"])
+def test_a_channel_shorter_than_the_others_is_masked_where_it_has_no_sample_and_cuts_no_other(tmp_path, table, end):
+    """One acceleration channel of a 3 s run lacks its first 0.5 s (or its last 2 s): the run keeps its 3 s, that
+    channel is NaN there and masked with a finding that says so, and every other channel keeps all its samples."""
+    ch = _channels()
+    t, v, u = ch["ACC_W2R_Y"]
+    keep = t >= 0.5 if end == "head" else t < 1.0
+    ch["ACC_W2R_Y"] = (t[keep], v[keep], u)
+    run = read_run(_write(tmp_path, "short", ch, "parquet"), table)
+    assert run.n_samples == 3000 and run.t[0] == pytest.approx(0.0)
+    i = run.names.index("ACC_W2R_Y")
+    np.testing.assert_array_equal(np.isnan(run.acceleration[i]), ~keep)
+    (ev,) = [e for e in run.rejected if e.channel == "ACC_W2R_Y"]
+    assert ev.kind == "time_gap" and ev.action == "masked"
+    assert ("channel starts 0.5 s after" if end == "head" else "channel ends 2 s before") in ev.reason
+    from estimator.spatial import odometry_track
+
+    checked = check_run(run, odometry_track(run.odometry, +1))
+    assert checked.mask.masked[i, ~keep].all()
+    others = [k for k in range(len(run.names)) if k != i]
+    assert not checked.mask.masked[others].any()
+    assert not [e for e in checked.mask.events if e.kind == "dropout_nan"]  # reported once, as the reading's finding
+
+
+def test_accelerations_beyond_the_odometry_are_masked_not_given_a_held_chainage(tmp_path, table):
+    """Speed and position end at 1.5 s while the accelerations run to 3 s: past the odometry's last sample (and
+    one odometry interval) the chainage is not measured, so those samples are masked and the finding says why."""
+    ch = _channels()
+    for name in ("SPEED", "POSITION"):
+        t, v, u = ch[name]
+        ch[name] = (t[t <= 1.5], v[t <= 1.5], u)
+    from estimator.spatial import odometry_track
+
+    run = read_run(_write(tmp_path, "odoend", ch, "parquet"), table)
+    checked = check_run(run, odometry_track(run.odometry, +1))
+    (ev,) = [e for e in checked.mask.events if e.kind == "odometry_gap"]
+    assert "odometry covers 0.000 to 1.500 s" in ev.reason and ev.t_start == pytest.approx(1.511)
+    assert checked.mask.masked[:, run.t > 1.51 + 1e-9].all() and not checked.mask.masked[:, run.t <= 1.5].any()
+
+
+def test_an_odometer_that_does_not_reset_at_a_balise_is_pinned_to_the_balise_and_says_so(tmp_path, table, caplog):
+    """The balises say 150 m and 160.1 m at 1 s and 2 s, but the odometer (10 m/s from 100 m) never resets: the
+    balise is the absolute reference, so the chainage follows it (offset 40 m, the 1 % scale error between the two
+    corrected), and each passage is reported as not reset, with the odometer's reading."""
+    from estimator.spatial import odometry_track
+
+    ch = _channels()
+    ch["BALISE"] = (np.array([1.0, 2.0]), np.array([150.0, 160.1]), "m")
+    run = read_run(_write(tmp_path, "noreset", ch, "parquet"), table)
+    with caplog.at_level(logging.WARNING, logger="estimator"):
+        tr = odometry_track(run.odometry, +1, source="noreset.parquet")
+    evs = [e for e in tr.events if e.kind == "odometry_not_reset"]
+    assert len(evs) == 2 and "balise at 150.00 m: the odometer reads 110.00 m after the passage (-40.00 m off" \
+        in evs[0].reason
+    assert "noreset.parquet: odometry_not_reset" in caplog.text
+    np.testing.assert_allclose(tr.chainage_at(np.array([1.0, 1.5, 2.0])), [150.0, 155.05, 160.1], atol=1e-6)
+    assert not tr.untrusted
+    ch = _channels()  # an odometer that resets as the field contract says: no such finding
+    ch["BALISE"] = (np.array([1.0, 2.0]), np.array([110.0, 120.0]), "m")
+    run = read_run(_write(tmp_path, "reset", ch, "parquet"), table)
+    assert not [e for e in odometry_track(run.odometry, +1).events if e.kind == "odometry_not_reset"]

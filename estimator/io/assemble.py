@@ -127,6 +127,21 @@ def _time_gaps(ch: RawChannel, index: np.ndarray, fs: float, odometry: Odometry)
     return out
 
 
+def _short_ends(ch: RawChannel, name: str, k0: int, size: int, n: int, t0: float, fs: float,
+                odometry: Odometry) -> list[QCEvent]:
+    """``time_gap`` findings where a channel starts after or ends before the run's other accelerations."""
+    out = []
+    for a, b, what in ((0, k0, "starts"), (k0 + size, n, "ends")):
+        if b > a:
+            t_a, t_b = t0 + a / fs, t0 + (b - 1) / fs
+            c = np.interp([t_a, t_b], odometry.t, odometry.position)
+            out.append(QCEvent("time_gap", name, t_a, t_b,
+                               f"channel {what} {(b - a) / fs:.6g} s {'after' if what == 'starts' else 'before'} "
+                               "the run's other accelerations; NaN there, not interpolated", "masked",
+                               float(c.min()), float(c.max())))
+    return out
+
+
 def _odometry_gaps(ch: RawChannel, source: str) -> list[tuple[float, float, str]]:
     """Stretches an odometry channel does not cover: its time stamps jump by more than
     :data:`ODOMETRY_GAP_FACTOR` median intervals (OdometryError if they do not increase)."""
@@ -337,23 +352,30 @@ def assemble_run(raw: RawRecording, sensors: pd.DataFrame, source: str, fmt: str
     if len(keep) < 2:
         raise ChannelError(f"{source}: fewer than two acceleration channels are usable at {fs_run:g} Hz "
                            f"({[e.describe() for e in rejected]})")
-    t0 = max(raw.channels[str(r["name"])].t[0] for r in keep)
-    t1 = min(raw.channels[str(r["name"])].t[-1] for r in keep)
+    # the run spans every kept channel: a channel that starts late or ends early (a logger stopping one input, a
+    # truncated export) is NaN where it has no sample, reported and masked there, and cuts none of the others
+    t0 = min(raw.channels[str(r["name"])].t[0] for r in keep)
+    t1 = max(raw.channels[str(r["name"])].t[-1] for r in keep)
     n = int(np.floor((t1 - t0) * fs_run + 1e-6)) + 1
-    if n < 2:
-        raise ChannelError(f"{source}: the acceleration channels do not overlap in time")
-    data = np.empty((len(keep), n))
+    if n > MAX_SAMPLES:
+        raise ChannelError(f"{source}: the acceleration channels together span {n} samples ({t0:.3f} to {t1:.3f} s); "
+                           f"at most {MAX_SAMPLES}")
+    data = np.full((len(keep), n), np.nan)
     gaps: list[QCEvent] = []
     for i, row in enumerate(keep):
         name = str(row["name"])
         ch = raw.channels[name]
-        off = (t0 - ch.t[0]) * fs_run
+        off = (ch.t[0] - t0) * fs_run
         k0 = int(round(off))
         if abs(off - k0) > 0.01:
             raise ChannelError(f"{source}: channel {name!r} starts {off - k0:+.3f} samples off the common time "
                                "base of the other accelerations; the estimator needs simultaneously sampled channels")
-        data[i] = _on_grid(ch, grids[name])[k0:k0 + n]
-        gaps += [e for e in _time_gaps(ch, grids[name], fs_run, odometry) if e.t_end >= t0 and e.t_start <= t1]
+        values = _on_grid(ch, grids[name])
+        data[i, k0:k0 + values.size] = values
+        gaps += _time_gaps(ch, grids[name], fs_run, odometry)
+        gaps += _short_ends(ch, name, k0, values.size, n, t0, fs_run, odometry)
+    if n < 2:
+        raise ChannelError(f"{source}: the acceleration channels hold fewer than two samples")
     for e in gaps:
         log.warning("%s: %s", source, e.describe())
     lost = f"; {len(gaps)} time-stamp gap(s), the samples lost masked" if gaps else ""
