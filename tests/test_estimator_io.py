@@ -532,3 +532,27 @@ def test_an_odometer_that_does_not_reset_at_a_balise_is_pinned_to_the_balise_and
     ch["BALISE"] = (np.array([1.0, 2.0]), np.array([110.0, 120.0]), "m")
     run = read_run(_write(tmp_path, "reset", ch, "parquet"), table)
     assert not [e for e in odometry_track(run.odometry, +1).events if e.kind == "odometry_not_reset"]
+
+
+def test_a_header_that_cannot_be_read_or_gives_a_key_twice_and_rows_without_a_channel_are_named(tmp_path, table):
+    """The run's identity must not be lost or chosen silently: an MDF 4 header comment that is not valid XML (an
+    unescaped '&'), a CSV header giving 'direction' twice with two values, and CSV rows with an empty channel
+    cell (samples no channel can take) are each a RunFileError naming the file and what is wrong."""
+    ch = _channels()
+    p = tmp_path / "badxml.mf4"
+    write_mdf4(p, ch, {**HEADER, "train": "T12 & T13"})
+    with pytest.raises(RunFileError, match=r"badxml.mf4: the header comment is not valid XML .*cannot be read"):
+        read_run(p, table)
+    p = _write(tmp_path, "twice", ch, "csv")
+    p.write_text("# direction = backward\n" + p.read_text())
+    with pytest.raises(RunFileError, match=r"twice.csv: header key 'direction' is given twice \('backward', then "
+                                           r"'forward'\)"):
+        read_run(p, table)
+    p = _write(tmp_path, "blank", ch, "csv")
+    lines = p.read_text().splitlines()
+    first = next(i for i, ln in enumerate(lines) if ln.startswith("ACC_W1L_Z,"))
+    for i in (first + 5, first + 6):
+        lines[i] = lines[i].replace("ACC_W1L_Z", "", 1)
+    p.write_text("\n".join(lines) + "\n")
+    with pytest.raises(RunFileError, match=r"blank.csv: 2 data row\(s\) have no channel name \(row\(s\) 6, 7,"):
+        read_run(p, table)

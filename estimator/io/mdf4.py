@@ -30,17 +30,35 @@ def sniff(path: Path, head: bytes) -> bool:
 
 
 def header_properties(comment: str) -> dict[str, str]:
-    """``<e name="key">value</e>`` entries of an MDF 4 header comment's ``<common_properties>``."""
+    """``<e name="key">value</e>`` entries of an MDF 4 header comment's ``<common_properties>``.
+
+    A comment without markup holds no properties (``{}``). Raises ValueError when the comment is markup that does
+    not parse (an unescaped ``&``, a tag left open) or gives one key two values: the run's identity, date and
+    direction would otherwise be lost or chosen without a word.
+    """
     if not comment or "<" not in comment:
         return {}
     try:
         root = ET.fromstring(comment)
-    except ET.ParseError:
-        return {}
-    out = {}
+    except ET.ParseError as exc:
+        raise ValueError(f"the header comment is not valid XML ({exc})") from None
+    out: dict[str, str] = {}
     for el in root.iter():
         if el.tag == "e" and el.get("name"):
-            out[el.get("name")] = (el.text or "").strip()
+            k, v = el.get("name"), (el.text or "").strip()
+            if k in out and out[k] != v:
+                raise ValueError(f"the header comment gives {k!r} twice ({out[k]!r}, then {v!r})")
+            out[k] = v
+    if not out:
+        # asammdf keeps a comment it cannot parse as escaped text inside <TX>: properties written there are lost
+        # unless said so
+        text = " ".join(el.text or "" for el in root.iter("TX"))
+        if "common_properties" in text or "<e name=" in text:
+            try:
+                ET.fromstring(text.strip())
+            except ET.ParseError as exc:
+                raise ValueError(f"the header comment is not valid XML ({exc})") from None
+            return header_properties(text.strip())
     return out
 
 
@@ -112,7 +130,10 @@ def read_raw(path: Path) -> RawRecording:
     try:
         if int(str(mdf.version).split(".")[0]) < 4:
             raise RunFileError(f"{path}: MDF version {mdf.version}; the field contract uses MDF 4")
-        header = header_properties(mdf.header.comment or "")
+        try:
+            header = header_properties(mdf.header.comment or "")
+        except ValueError as exc:
+            raise RunFileError(f"{path}: {exc}; the run header (run_id, date, direction, ...) cannot be read") from None
         channels: dict[str, RawChannel] = {}
         unusable: dict[str, str] = {}
         for name, where in mdf.channels_db.items():

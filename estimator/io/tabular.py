@@ -48,6 +48,12 @@ def _from_frame(df: pd.DataFrame, header: Mapping[str, str], path: Path) -> RawR
         raise RunFileError(f"{path}: missing column(s) {missing}; a tabular run file has columns {list(COLUMNS)}")
     if "unit" not in df.columns:
         df = df.assign(unit="")
+    blank = df["channel"].isna().to_numpy() | (df["channel"].astype(str).str.strip() == "").to_numpy()
+    if blank.any():
+        rows = np.flatnonzero(blank) + 1
+        raise RunFileError(f"{path}: {rows.size} data row(s) have no channel name (row(s) "
+                           f"{', '.join(map(str, rows[:10]))}{', ...' if rows.size > 10 else ''}, counted from 1 "
+                           "after the column header); their samples cannot be given to any channel")
     channels = {}
     for name, g in df.groupby("channel", sort=False):
         t = pd.to_numeric(g["t_s"], errors="coerce").to_numpy(float)
@@ -91,8 +97,11 @@ def read_csv(path: Path) -> RawRecording:
             skip += 1
             body = line[1:].strip()
             if "=" in body:
-                k, v = body.split("=", 1)
-                header[k.strip()] = v.strip()
+                k, v = (x.strip() for x in body.split("=", 1))
+                if k in header and header[k] != v:
+                    raise RunFileError(f"{path}: header key {k!r} is given twice ({header[k]!r}, then {v!r}); "
+                                       "which one holds cannot be told")
+                header[k] = v
     try:
         df = pd.read_csv(path, skiprows=skip, encoding="utf-8-sig", dtype={"channel": str, "unit": str})
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
