@@ -15,6 +15,7 @@ trolley's own chainage is issue 14's business).
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass
 
@@ -26,8 +27,10 @@ from estimator.results import FieldEstimate
 from estimator.standards.en13231 import BandIndexes, band_indexes
 from estimator.standards.en15610 import roughness_spectrum
 
-__all__ = ["ReferenceIndexes", "reference_indexes", "window_pk", "compare_bands", "compare_spectra",
+__all__ = ["ReferenceIndexes", "reference_indexes", "on_uniform_grid", "MAX_GAP_STEPS", "window_pk", "compare_bands", "compare_spectra",
            "models_ranking"]
+
+log = logging.getLogger("estimator")
 
 
 @dataclass(frozen=True, eq=False)
@@ -43,9 +46,34 @@ class ReferenceIndexes:
         return self.x[rail], idx.pk_pk[idx.bands_mm.index(tuple(band))]
 
 
+#: samples further apart than this many steps of the record's grid are a gap, not interpolated across
+MAX_GAP_STEPS = 5
+
+
+def on_uniform_grid(x: np.ndarray, r: np.ndarray, dx: float, x0: float | None = None,
+                    x1: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """A reference profile (sorted chainages ``x``) on a uniform grid of step ``dx`` from ``x0`` to ``x1``.
+
+    Linear between neighbouring samples; NaN (a gap: the EN processing masks it) wherever the two samples around a
+    grid point are more than :data:`MAX_GAP_STEPS` steps apart — a stretch the trolley did not measure (rows left
+    out as unreadable, a lifted trolley) is not replaced by a straight line, whose band amplitudes would be zero.
+    """
+    x0 = float(x[0]) if x0 is None else x0
+    x1 = float(x[-1]) if x1 is None else x1
+    grid = x0 + dx * np.arange(int(round((x1 - x0) / dx)) + 1)
+    if x.size < 2:
+        return grid, np.where(np.abs(grid - x[0]) <= 0.5 * dx, r[0], np.nan) if x.size else np.full(grid.size, np.nan)
+    v = np.interp(grid, x, r, left=np.nan, right=np.nan)
+    j = np.clip(np.searchsorted(x, grid), 1, x.size - 1)
+    near = np.minimum(np.abs(grid - x[j - 1]), np.abs(x[j] - grid))
+    v[((x[j] - x[j - 1]) > MAX_GAP_STEPS * dx) & (near > 0.5 * dx)] = np.nan
+    return grid, v
+
+
 def reference_indexes(reference: pd.DataFrame, config: EstimatorConfig = EstimatorConfig(),
-                      span: tuple[float, float] | None = None) -> ReferenceIndexes:
-    """Band indexes of a reference table ``chainage_m, rail, roughness_m`` (each rail resampled to a uniform grid)."""
+                      span: tuple[float, float] | None = None, source: str = "reference") -> ReferenceIndexes:
+    """Band indexes of a reference table ``chainage_m, rail, roughness_m`` (each rail on a uniform grid,
+    :func:`on_uniform_grid`: gaps stay gaps). A rail with fewer than 10 samples is left out with a WARNING."""
     xs, ps, ids = {}, {}, {}
     for rail, g in reference.groupby("rail"):
         x = g["chainage_m"].to_numpy(float)
@@ -56,10 +84,11 @@ def reference_indexes(reference: pd.DataFrame, config: EstimatorConfig = Estimat
             sel = (x >= span[0] - 10) & (x <= span[1] + 10)
             x, r = x[sel], r[sel]
         if x.size < 10:
+            log.warning("%s: rail %s has %d sample(s)%s (< 10): not compared", source, rail, x.size,
+                        f" within {span[0]:.1f}-{span[1]:.1f} m" if span is not None else "")
             continue
         dx = float(np.median(np.diff(x)))
-        grid = x[0] + dx * np.arange(int(round((x[-1] - x[0]) / dx)) + 1)
-        prof = np.interp(grid, x, r)
+        grid, prof = on_uniform_grid(x, r, dx)
         xs[rail], ps[rail] = grid, prof
         bi = band_indexes(prof[None, :], dx, config.bands_mm, [config.window_m(b) for b in config.bands_mm])
         ids[rail] = BandIndexes(bi.dx, bi.bands_mm, bi.windows_m, bi.pk_pk[:, 0], bi.decimation)

@@ -95,7 +95,7 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
         fm, _ = calibrated_field_model(fm, args.model, args.calibration)
     reference = None
     if args.reference:
-        reference = reference_indexes(read_trolley(args.reference), cfg)
+        reference = reference_indexes(read_trolley(args.reference), cfg, source=str(args.reference))
     step(f"estimating {args.run}")
     est = estimate_run(args.run, fm, direction=args.direction)
     step("writing profiles, indexes, spectra, figures and the report")
@@ -134,7 +134,7 @@ def demo_field_step(out: Path, model, wheelset_scenario: str, progress=None) -> 
     step(f"estimating {run.name} with the lab's model (half, vertical, vertical + lateral)")
     est = estimate_run(run, fm)
     trolley = sorted((line_dir / "trolley").glob("*.csv"))
-    reference = reference_indexes(read_trolley(trolley[0]), fm.config) if trolley else None
+    reference = reference_indexes(read_trolley(trolley[0]), fm.config, source=str(trolley[0])) if trolley else None
     with staged_output(field_dir) as tmp:
         files = write_estimate(est, tmp, reference=reference)
     files = {k: field_dir / Path(v).relative_to(tmp) for k, v in files.items()}

@@ -120,3 +120,27 @@ def test_band_indexes_do_not_depend_on_the_sampling_step():
         bi = band_indexes(p[None], dx, [(100.0, 300.0), (30.0, 100.0)], [1.5, 0.5])
         out.append([np.nanmedian(bi.pk_pk[b, 0]) for b in range(2)])
     np.testing.assert_allclose(out[0], out[1], rtol=0.01)
+
+
+def test_a_reference_is_not_interpolated_across_a_stretch_it_did_not_measure(caplog):
+    """A trolley record (1 mm step, 60 µm sine of 60 mm wavelength on rail L) lacks 20 m in its middle: the
+    30-100 mm band peak-to-peak is NaN inside the gap, not the ~0 of a straight line drawn across it, and equals
+    the sine's 2·60 µm outside; a rail of 5 samples is left out with a WARNING naming it."""
+    import logging
+
+    import pandas as pd
+
+    from estimator.reference import reference_indexes
+
+    x = np.arange(0.0, 100.0, 0.001)
+    keep = (x < 40.0) | (x >= 60.0)
+    r = 60e-6 * np.sin(2 * np.pi * x / 0.060)
+    table = pd.concat([pd.DataFrame({"chainage_m": x[keep], "rail": "L", "roughness_m": r[keep]}),
+                       pd.DataFrame({"chainage_m": np.arange(5.0), "rail": "R", "roughness_m": 0.0})])
+    with caplog.at_level(logging.WARNING, logger="estimator"):
+        ref = reference_indexes(table, source="trolley.csv")
+    assert "trolley.csv: rail R has 5 sample(s) (< 10): not compared" in caplog.text and set(ref.x) == {"L"}
+    xg, pk = ref.pk_pk((30, 100), "L")
+    assert np.isnan(pk[(xg > 45) & (xg < 55)]).all()
+    np.testing.assert_allclose(pk[(xg > 10) & (xg < 30)], 120e-6, rtol=0.05)
+    np.testing.assert_allclose(pk[(xg > 70) & (xg < 90)], 120e-6, rtol=0.05)

@@ -40,6 +40,7 @@ from estimator.monitoring.averaging import energy_mean_db, level_db
 from estimator.monitoring.config import MonitoringConfig
 from estimator.monitoring.errors import TrolleyReferenceError
 from estimator.monitoring.records import bin_windows
+from estimator.reference import MAX_GAP_STEPS, on_uniform_grid
 from estimator.standards.en13231 import band_indexes
 from estimator.standards.en15610 import roughness_spectrum
 
@@ -48,8 +49,6 @@ __all__ = ["TrolleyRecord", "read_trolley_record", "trolley_windows", "band_erro
 
 log = logging.getLogger("estimator")
 
-#: samples further apart than this many grid steps belong to separate stretches
-MAX_GAP_STEPS = 5
 _DATE_IN_NAME = re.compile(r"(\d{4}-\d{2}-\d{2})")
 
 
@@ -92,18 +91,11 @@ def read_trolley_record(path, date: str | None = None) -> TrolleyRecord:
     n = int(round((hi - lo) / dx)) + 1
     if n > 50_000_000:
         raise TrolleyReferenceError(f"{p}: {n} samples at {dx * 1e3:g} mm over {hi - lo:.0f} m; at most 50 million")
-    x = lo + dx * np.arange(n)
     vals = np.full((len(rails), n), np.nan)
     for i, r in enumerate(rails):
         g = df[df["rail"] == r]
-        xs, ys = g["chainage_m"].to_numpy(float), g["roughness_m"].to_numpy(float)
-        v = np.interp(x, xs, ys, left=np.nan, right=np.nan)
-        # no interpolation across a gap: the nearest sample must be within MAX_GAP_STEPS steps
-        j = np.clip(np.searchsorted(xs, x), 1, xs.size - 1)
-        near = np.minimum(np.abs(x - xs[j - 1]), np.abs(xs[j] - x))
-        gap = (xs[j] - xs[j - 1]) > MAX_GAP_STEPS * dx
-        v[gap & (near > 0.5 * dx)] = np.nan
-        vals[i] = v
+        vals[i] = on_uniform_grid(g["chainage_m"].to_numpy(float), g["roughness_m"].to_numpy(float), dx, lo,
+                                  lo + dx * (n - 1))[1]
     return TrolleyRecord(str(p), date, lo, dx, rails, vals)
 
 
