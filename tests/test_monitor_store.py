@@ -14,7 +14,7 @@ import pandas as pd
 import pytest
 
 from estimator.monitoring.errors import StoreError
-from estimator.monitoring.store import MonitoringStore
+from estimator.monitoring.store import RUN_TABLES, MonitoringStore, RunIdCollision
 
 
 def run_tables(run_id: str, date: str, sections=("s1", "s2"), n=50, value=1.0, model="m1") -> dict:
@@ -140,3 +140,176 @@ def test_a_folder_that_is_not_a_store_is_refused(tmp_path):
         st.write("line1", "r1", "m1", run_tables("r1", "04/03/2024"))
     with pytest.raises(StoreError, match="unknown table"):
         st.write("line1", "r1", "m1", {"nonsense": pd.DataFrame({"section": ["a"], "date": ["2024-03-04"]})})
+
+
+# --------------------------------------------------------------------------- one run per file name
+def ident(run_id: str, date: str, source, train="T1", bogie="B2") -> dict:
+    return {"run_id": run_id, "date": date, "source": str(source), "train": train, "bogie": bogie}
+
+
+def write_run(st, line, run_id, date, source, model="m1", value=1.0, train="T1"):
+    """A run's rows as the ingest writes them (its QC rows carry its file, train and bogie), with its identity."""
+    t = run_tables(run_id, date, value=value, model=model)
+    t["runs"] = t["runs"].assign(source=str(source), train=train, bogie="B2")
+    return st.write(line, run_id, model, t, run=ident(run_id, date, source, train))
+
+
+def failure_row(run_id: str, source, date="unknown", model="m1") -> dict:
+    return {"failures": pd.DataFrame([{"run_id": run_id, "source": str(source), "stage": "estimate", "error": "x",
+                                       "section": "none", "date": date, "model_hash": model}])}
+
+
+def counts(st: MonitoringStore) -> dict:
+    return {t: len(st.read(t)) for t in ("runs", "windows", "failures")}
+
+
+def test_a_different_run_under_the_same_file_name_is_refused_and_the_stored_run_kept(tmp_path):
+    """A logger restarting at R001 every day, two trains' loggers, ids that differ only where safe_name maps
+    them to one file name, a run that now fails: each would have replaced the stored run's rows everywhere."""
+    st = MonitoringStore(tmp_path / "store")
+    a, b, c = (tmp_path / f"{n}.mf4" for n in "abc")
+    for k, f in enumerate((a, b, c)):
+        f.write_bytes(bytes([k]) * 100)
+    write_run(st, "line1", "R001", "2026-01-05", a)
+    write_run(st, "line1", "T12_run_5", "2026-01-05", c)
+    before = counts(st)
+    assert before == {"runs": 4, "windows": 200, "failures": 0}
+    with pytest.raises(RunIdCollision) as e:  # the next day's R001
+        write_run(st, "line1", "R001", "2026-01-14", b, value=9.0)
+    msg = str(e.value)
+    assert msg.startswith(f"{b}: run_id 'R001'") and f"run_id of {a} (date 2026-01-05) in the store" in msg
+    assert "unique" in msg and (e.value.source, e.value.other_source) == (str(b), str(a))
+    with pytest.raises(RunIdCollision, match="train 'T1' there, 'T7' here"):  # another train's R001, same day
+        write_run(st, "line1", "R001", "2026-01-05", b, value=9.0, train="T7")
+    with pytest.raises(RunIdCollision, match="the two files differ"):  # a logger restarted within the day
+        write_run(st, "line1", "R001", "2026-01-05", b, value=9.0)
+    with pytest.raises(RunIdCollision, match="same file name 'T12_run_5' as run_id 'T12_run_5'"):
+        write_run(st, "line1", "T12/run 5", "2026-01-05", b, value=9.0)
+    with pytest.raises(RunIdCollision):  # another file's failure (header unread) under the name
+        st.write("line1", "R001", "m1", failure_row("R001", b), run=ident("R001", "unknown", b))
+    with pytest.raises(RunIdCollision):  # a different run is refused in another model version too
+        write_run(st, "line1", "R001", "2026-01-14", b, model="m2")
+    assert counts(st) == before
+    w = st.read("windows")
+    assert set(w["date"]) == {"2026-01-05"} and set(w["pk_pk_um"]) == {1.0}
+    assert set(st.read("runs")["source"]) == {str(a), str(c)}
+    # another line holds its own run ids
+    write_run(st, "line2", "R001", "2026-01-14", b)
+    assert len(st.read("windows", line="line2")) == 100 and len(st.read("windows", line="line1")) == 200
+
+
+def test_the_same_run_is_replaced_wherever_its_file_now_is(tmp_path):
+    """Re-processing a run replaces its rows: from its file, from an identical copy, from the file moved; as a
+    failure; and a run id that merely starts like another's ("R1" and "R1__x") is no collision."""
+    st = MonitoringStore(tmp_path / "store")
+    a = tmp_path / "a.mf4"
+    a.write_bytes(b"run R001")
+    write_run(st, "line1", "R001", "2026-01-05", a)
+    write_run(st, "line1", "R001", "2026-01-05", a, value=2.0)
+    copy = tmp_path / "copy.mf4"
+    copy.write_bytes(a.read_bytes())
+    write_run(st, "line1", "R001", "2026-01-05", copy, value=3.0)
+    moved = tmp_path / "archive" / "a.mf4"
+    moved.parent.mkdir()
+    a.rename(moved)
+    copy.unlink()
+    write_run(st, "line1", "R001", "2026-01-05", moved, value=4.0)
+    assert counts(st) == {"runs": 2, "windows": 100, "failures": 0}
+    assert set(st.read("windows")["pk_pk_um"]) == {4.0}
+    # a new model version of the same run lies beside the old one
+    write_run(st, "line1", "R001", "2026-01-05", moved, model="m2")
+    assert len(st.read("windows")) == 200
+    # the run now fails (its header unreadable): its failure replaces its rows (of this model version)
+    st.write("line1", "R001", "m2", failure_row("R001", moved, model="m2"), replace_tables=RUN_TABLES,
+             run=ident("R001", "unknown", moved))
+    assert len(st.read("windows", model_hash="m2")) == 0 and len(st.read("failures")) == 1
+    write_run(st, "line1", "R1__x", "2026-01-06", moved)
+    write_run(st, "line1", "R1", "2026-01-07", a)
+    assert len(st.read("windows", model_hash="m1")) == 300
+    # without a run to check (a day's aggregates), the write replaces as before
+    st.write("line1", "R001", "m1", run_tables("R001", "2026-01-14", value=5.0))
+    assert set(st.read("windows", model_hash="m1", date="2026-01-14")["pk_pk_um"]) == {5.0}
+
+
+@pytest.fixture(scope="module")
+def field_runs(tmp_path_factory):
+    """Synthetic runs: R001 of two days (a logger restarting its numbering) and two ids with one file name."""
+    from receptance.model_io import save_model
+    from test_estimator_synthetic import control_model, make_run, sensor_table
+
+    from estimator import EstimatorConfig
+    from estimator.monitoring import IngestSpec, MonitoringConfig
+
+    d = tmp_path_factory.mktemp("dup_ids")
+    model = control_model()
+    save_model(model, d / "hybrid_model.npz")
+    sensor_table().to_csv(d / "sensors.csv", index=False)
+    runs = {}
+    for name, rid, date, off in (("jan05", "R001", "2026-01-05", 1.5), ("jan14", "R001", "2026-01-14", 0.7),
+                                 ("t12a", "T12/run 5", "2026-01-05", 1.0), ("t12b", "T12_run_5", "2026-01-05", 1.2)):
+        runs[name] = make_run(d, model, duration_s=25.0, start_offset_m=off, name=name,
+                              header_extra={"run_id": rid, "date": date}).path
+    spec = IngestSpec(str(d / "hybrid_model.npz"), str(d / "sensors.csv"), estimator=EstimatorConfig(wheelbase_m=2.2),
+                      monitoring=MonitoringConfig(uncertainty_runs=0))
+    return {"dir": d, "runs": runs, "spec": spec}
+
+
+def _spy(monkeypatch):
+    import estimator.monitoring.workflow as wf
+
+    seen = []
+    real = wf.process_run
+
+    def spy(path, *a, **k):
+        seen.append(str(path))
+        return real(path, *a, **k)
+
+    monkeypatch.setattr(wf, "process_run", spy)
+    return seen
+
+
+def test_ingest_refuses_a_second_run_with_the_same_run_id_and_keeps_the_first(field_runs, monkeypatch):
+    from estimator.monitoring import ingest
+
+    jan05, jan14 = str(field_runs["runs"]["jan05"]), str(field_runs["runs"]["jan14"])
+    st = MonitoringStore(field_runs["dir"] / "store_a")
+    first = ingest([jan05], field_runs["spec"], st)
+    assert list(first.runs["run_id"]) == ["R001"] and first.failures.empty
+    tables = ("runs", "windows", "alignment", "spectra", "days", "day_sections")
+    before = {t: len(st.read(t)) for t in tables}
+    assert before["windows"] > 0 and before["days"] > 0
+    seen = _spy(monkeypatch)
+    res = ingest([jan14], field_runs["spec"], st)
+    assert seen == []  # refused before processing
+    assert res.runs.empty and res.dates == () and len(res.failures) == 1
+    f = res.failures.iloc[0]
+    assert f["stage"] == "run_id" and f["source"] == jan14 and f["date"] == "2026-01-14"
+    assert f["error"].startswith(f"{jan14}: run_id 'R001'") and f"{jan05} (date 2026-01-05) in the store" in f["error"]
+    assert {t: len(st.read(t)) for t in tables} == before
+    for t in tables:
+        assert set(st.read(t)["date"]) == {"2026-01-05"}
+    assert st.read("failures").empty  # the refusal is reported, not stored under the name it would overwrite
+    # re-ingesting the stored run replaces its rows, never duplicates them
+    again = ingest([jan05], field_runs["spec"], st)
+    assert seen == [jan05] and list(again.runs["run_id"]) == ["R001"] and again.failures.empty
+    # (its alignment rows change: it is now aligned to the day's stored reference instead of being it)
+    assert {t: len(st.read(t)) for t in tables if t != "alignment"} == {t: n for t, n in before.items()
+                                                                          if t != "alignment"}
+    assert not st.read("alignment").duplicated(["run_id", "wheelset", "stage", "from_m"]).any()
+    assert not st.read("windows").duplicated(["run_id", "wheelset", "rail", "band_mm", "window_m"]).any()
+
+
+def test_ingest_refuses_run_ids_sharing_a_file_name_within_a_batch(field_runs, monkeypatch):
+    from estimator.monitoring import ingest
+
+    a, b = str(field_runs["runs"]["t12a"]), str(field_runs["runs"]["t12b"])
+    st = MonitoringStore(field_runs["dir"] / "store_b")
+    seen = _spy(monkeypatch)
+    res = ingest([a, b], field_runs["spec"], st)
+    assert seen == [] and res.runs.empty and len(res.failures) == 2
+    err = res.failures.set_index("source")["error"]
+    assert set(res.failures["stage"]) == {"run_id"}
+    assert err[a].startswith(f"{a}: run_id 'T12/run 5'") and f"run_id 'T12_run_5' of {b}" in err[a]
+    assert "in this batch" in err[a] and "same file name 'T12_run_5'" in err[a]
+    assert err[b].startswith(f"{b}: run_id 'T12_run_5'") and f"run_id 'T12/run 5' of {a}" in err[b]
+    assert not st.files("runs") and not st.files("windows")

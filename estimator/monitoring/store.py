@@ -34,12 +34,23 @@ processes writing at once therefore serialise their updates and lose
 nothing. A crash between two partitions of one run leaves that run's old
 rows in the partitions not yet replaced (never a partial file, never a
 duplicate); ingesting the run again completes it.
+
+**One run per file name.** Because a run's files are named after its run
+id, a *different* run whose id is the same (a logger that numbers its runs
+from R001 every day) or maps to the same file name (``T12/run 5`` and
+``T12_run_5``, :func:`safe_name`) would replace the first one's rows in
+every section and on every day. A run's writer therefore states the run
+(:meth:`MonitoringStore.write`'s ``run``); under the lock, before anything
+is written, the runs already stored under that name are compared with it
+(:func:`same_run`) and a different run is refused with
+:class:`RunIdCollision`, naming both files.
 """
 
 from __future__ import annotations
 
 import contextlib
 import fcntl
+import hashlib
 import json
 import logging
 import os
@@ -55,7 +66,8 @@ import pyarrow.parquet as pq
 
 from estimator.monitoring.errors import StoreError
 
-__all__ = ["MonitoringStore", "TABLES", "RUN_TABLES", "DAY_TABLES", "safe_name", "STORE_FORMAT", "STORE_VERSION"]
+__all__ = ["MonitoringStore", "TABLES", "RUN_TABLES", "DAY_TABLES", "safe_name", "STORE_FORMAT", "STORE_VERSION",
+           "RunIdCollision", "RUN_IDENTITY", "UNKNOWN_DATE", "same_run", "collision_message"]
 
 log = logging.getLogger("estimator")
 
@@ -75,6 +87,133 @@ def safe_name(text) -> str:
     if not s or s in (".", ".."):
         raise StoreError(f"{text!r} cannot name a partition or a file")
     return s
+
+
+# --------------------------------------------------------------------------- run identity
+#: what identifies a run in the store (columns of ``runs``; ``failures`` has all but ``train`` and ``bogie``)
+RUN_IDENTITY = ("run_id", "date", "source", "train", "bogie")
+#: the date of a run whose header could not be read (failures only)
+UNKNOWN_DATE = "unknown"
+
+
+class RunIdCollision(StoreError):
+    """A run refused because a different run is stored (or ingested) under the same file name.
+
+    Attributes
+    ----------
+    source, other_source : str
+        The refused run's file and the file of the run that holds the name.
+    """
+
+    def __init__(self, message: str, source: str = "", other_source: str = "") -> None:
+        super().__init__(message)
+        self.source = source
+        self.other_source = other_source
+
+
+def _text(value) -> str:
+    # identities read back from Parquet carry None/NaN where a column is absent from some files
+    return "" if value is None or (isinstance(value, float) and value != value) else str(value)
+
+
+def _same_file(a: str, b: str) -> bool:
+    if a == b:
+        return True
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+_HASHES: dict[tuple, str] = {}
+
+
+def _content_hash(path: str) -> str:
+    """SHA-256 of a file, remembered per (path, size, modification time): the pre-check and the write both ask."""
+    st = os.stat(path)
+    key = (os.path.realpath(path), st.st_size, st.st_mtime_ns)
+    if key not in _HASHES:
+        h = hashlib.sha256()
+        with open(path, "rb") as f:
+            for chunk in iter(lambda: f.read(1 << 20), b""):
+                h.update(chunk)
+        if len(_HASHES) > 256:
+            _HASHES.clear()
+        _HASHES[key] = h.hexdigest()
+    return _HASHES[key]
+
+
+def _difference(stored: Mapping, new: Mapping) -> str:
+    """Why two runs under one file name are different runs; "" when they are the same run."""
+    if _text(stored.get("run_id")) != _text(new.get("run_id")):
+        return "different run ids"
+    # the header's train and bogie, where both runs record them, tell two loggers' runs of one day apart
+    for k in ("train", "bogie"):
+        a, b = _text(stored.get(k)), _text(new.get(k))
+        if a and b and a != b:
+            return f"{k} {a!r} there, {b!r} here"
+    d0, d1 = _text(stored.get("date")), _text(new.get("date"))
+    dated = d0 not in ("", UNKNOWN_DATE) and d1 not in ("", UNKNOWN_DATE)
+    if dated and d0 != d1:
+        # even from the same path: a logger that rewrites one file every day; the stored day's recording then
+        # survives only in the store, and replacing its rows would lose it
+        return "different dates"
+    s0, s1 = _text(stored.get("source")), _text(new.get("source"))
+    if _same_file(s0, s1):
+        return ""
+    # another path on the same day (or a header that could not be read): a moved or copied file, or another
+    # recording that reuses the id (a logger restarted within the day). Only the stored run's file can tell;
+    # when it is gone, the run was moved.
+    if not s0 or not os.path.isfile(s0) or not os.path.isfile(s1):
+        return ""
+    try:
+        return "" if _content_hash(s0) == _content_hash(s1) else "the two files differ"
+    except OSError:
+        return ""
+
+
+def same_run(stored: Mapping, new: Mapping) -> bool:
+    """Whether two runs stored under the same file name are one run (re-processing replaces its rows).
+
+    A run is identified by its run id and survey date (not by its file's path, which changes when the archive
+    is moved, nor by a hash of the file, which the store does not record): the same ``run_id`` (exactly, not
+    only the same :func:`safe_name`) and the same ``date``, and the same ``train`` and ``bogie`` where both
+    record them. Within that, two different paths are one run when their contents are equal or the stored
+    run's file no longer exists (it was moved). A run whose header could not be read (date ``unknown`` on
+    either side) is matched by its file alone: the same path, an identical copy, or the stored file gone.
+
+    Parameters
+    ----------
+    stored, new : mapping
+        :data:`RUN_IDENTITY` of the stored run and of the run to write (missing keys are unknown).
+
+    Returns
+    -------
+    bool
+
+    Notes
+    -----
+    Two dates are two runs even from the same path (a logger that rewrites one file every day: the stored day
+    survives only in the store). A run whose header date was corrected therefore needs a new run id, or its
+    old files (``<run id>__*.parquet`` under the old date) removed from the store first.
+    """
+    return not _difference(stored, new)
+
+
+def collision_message(new: Mapping, stored: Mapping, where: str = "in the store") -> str:
+    """The refusal of ``new`` because ``stored`` (a different run, :func:`same_run`) has its file name."""
+    rid, other = _text(new.get("run_id")), _text(stored.get("run_id"))
+    src, other_src = _text(new.get("source")) or "run", _text(stored.get("source")) or "a run"
+    date, other_date = _text(new.get("date")) or UNKNOWN_DATE, _text(stored.get("date")) or UNKNOWN_DATE
+    if rid == other:
+        what = f"is also the run_id of {other_src} (date {other_date})"
+    else:
+        what = (f"is stored under the same file name {safe_name(rid)!r} as run_id {other!r} of {other_src} "
+                f"(date {other_date}; characters other than letters, digits and ._+- become _)")
+    why = _difference(stored, new)
+    why = "" if why in ("", "different run ids", "different dates") else f"; {why}"  # the rest says those
+    return (f"{src}: run_id {rid!r} (date {date}) {what} {where}{why}; run ids must be unique per line — "
+            "rename the run or give it a unique run_id in its header")
 
 
 class MonitoringStore:
@@ -168,8 +307,53 @@ class MonitoringStore:
                 columns=[c for c in PARTITIONS if c in g.columns])
         return out
 
+    @staticmethod
+    def _identities(frame: pd.DataFrame) -> list[dict]:
+        cols = [c for c in RUN_IDENTITY if c in frame.columns]
+        rows = frame[cols].drop_duplicates() if len(frame) else frame
+        return [{k: _text(v) for k, v in r.items()} for r in rows.to_dict("records")]
+
+    def _owners(self, line: str, key: str) -> list[dict]:
+        """The runs (and failed runs) stored under the file name of ``key`` on ``line``, in every model version."""
+        out = []
+        stem = safe_name(key)
+        seen = set()
+        for t in ("runs", "failures"):
+            for f in (self.root / t / f"line={safe_name(line)}").glob(f"section=*/date=*/{stem}__*.parquet"):
+                # a glob of "R1__*" also finds run "R1__x"'s files; the model version never holds "__"
+                if f.name.rsplit("__", 1)[0] != stem:
+                    continue
+                # one write puts the same run in every section of a date: one of its files is enough
+                if (t, f.parent.name, f.name) in seen:
+                    continue
+                seen.add((t, f.parent.name, f.name))
+                try:
+                    names = pq.read_schema(f).names
+                    frame = pq.read_table(f, columns=[c for c in RUN_IDENTITY if c in names and c != "date"]
+                                          ).to_pandas()
+                except (pa.ArrowInvalid, OSError) as exc:
+                    raise StoreError(f"{f}: cannot be read ({exc})") from None
+                out += self._identities(frame.assign(date=f.parent.name.split("=", 1)[1]))
+        return out
+
+    def stored_runs(self, line: str | None = None) -> pd.DataFrame:
+        """Who holds each run file name: ``line, key`` (the :func:`safe_name` of the run id) and
+        :data:`RUN_IDENTITY`, one row per stored run (and failed run) and identity, every model version."""
+        frames = []
+        for t, cols in (("runs", RUN_IDENTITY), ("failures", ("run_id", "date", "source"))):
+            f = self.read(t, line=line, columns=["line", *cols])
+            if len(f):
+                frames.append(f)
+        if not frames:
+            return pd.DataFrame(columns=["line", "key", *RUN_IDENTITY])
+        f = pd.concat(frames, ignore_index=True)
+        for c in RUN_IDENTITY:
+            f[c] = f[c].map(_text) if c in f.columns else ""
+        f = f.drop_duplicates().reset_index(drop=True)
+        return f.assign(key=f["run_id"].map(safe_name))[["line", "key", *RUN_IDENTITY]]
+
     def write(self, line: str, key: str, model_hash: str, tables: Mapping[str, pd.DataFrame],
-              replace_tables: Iterable[str] | None = None) -> list[Path]:
+              replace_tables: Iterable[str] | None = None, *, run: Mapping | None = None) -> list[Path]:
         """Write one unit's rows (a run, or a day) atomically per partition, replacing that unit's earlier rows.
 
         Parameters
@@ -185,11 +369,19 @@ class MonitoringStore:
         replace_tables : iterable of str, optional
             Tables whose earlier files of this unit are removed when not rewritten (default: the tables given,
             plus, for a run, every run table: a re-processed run that now fails loses its old rows).
+        run : mapping, optional
+            The run being written (:data:`RUN_IDENTITY`; ``run_id`` is ``key``): a *different* run stored under
+            the same file name (:func:`same_run`) refuses the write, before anything is written or removed.
 
         Returns
         -------
         list of Path
             The files written.
+
+        Raises
+        ------
+        RunIdCollision
+            ``run`` is given and another run holds its file name (the message names both files).
         """
         bad = [t for t in tables if t not in TABLES]
         if bad:
@@ -205,6 +397,12 @@ class MonitoringStore:
         temps = {}
         written = []
         with self.lock():
+            # checked under the lock: a concurrent ingest of the other run cannot slip in between
+            if run is not None:
+                for owner in self._owners(line, key):
+                    if not same_run(owner, run):
+                        raise RunIdCollision(collision_message(run, owner), _text(run.get("source")),
+                                             owner.get("source", ""))
             try:
                 for path, rows in plan.items():
                     temps[path] = self._write_table(rows, path)

@@ -1,7 +1,12 @@
 """Monitoring workflows: ingest runs into the store, update the days, and read a line's state back (thesis §4.3.3–4.3.6).
 
 :func:`ingest` (``railmodal field ingest``)
-    1. reads every run's header (date, run id) without its samples;
+    1. reads every run's header (date, run id) without its samples, and
+       refuses — before any processing, as a failure of that run — a run
+       whose id is stored under the same file name as another run of the
+       batch or of the store (:func:`~estimator.monitoring.store.same_run`:
+       run ids must be unique per line, or one run's rows would replace the
+       other's);
     2. per survey day, its **reference run** (the first by run id whose
        estimate succeeds; or the reference already stored for that day and
        model) is estimated and aligned to the line's welds and crossings
@@ -75,7 +80,8 @@ from estimator.monitoring.headers import read_header
 from estimator.monitoring.outliers import outlying_estimates, without_outliers
 from estimator.monitoring.records import RunInfo, Sections, config_hash, file_hash, spectra_rows, toolkit_version, \
     window_table
-from estimator.monitoring.store import MonitoringStore
+from estimator.monitoring.store import (RUN_TABLES, UNKNOWN_DATE, MonitoringStore, RunIdCollision, collision_message,
+                                        safe_name, same_run)
 from estimator.monitoring.trends import forecast, growth
 from estimator.monitoring.variants import (contact_variants, perturbed_variants, placement_variants, track_variants,
                                            variant_windows)
@@ -256,6 +262,16 @@ def _failure(path, header: Mapping, info: RunInfo, error: str, stage: str, line:
 def _identity(info: RunInfo) -> dict:
     return {"model_hash": info.model_hash, "model_file": info.model_file, "toolkit_version": info.toolkit_version,
             "config_hash": info.config_hash}
+
+
+def _run_identity(path, header, run_id: str | None = None, date: str | None = None) -> dict:
+    """The run as the store identifies it (:data:`~estimator.monitoring.store.RUN_IDENTITY`), from its header
+    (a dict, or the error that reading it raised) as :func:`_failure` and :func:`process_run` name it."""
+    h = header if isinstance(header, Mapping) else {}
+    d = str(h.get("date", "")) if date is None else date
+    return {"run_id": run_id if run_id is not None else str(h.get("run_id") or Path(path).stem),
+            "date": d if _DATE.match(d) else UNKNOWN_DATE, "source": str(path),
+            "train": str(h.get("train", "")), "bogie": str(h.get("bogie", ""))}
 
 
 def _align(est, feats: dict[int, FeatureProfile], reference: DayReference | None, ctx: _Context,
@@ -512,13 +528,31 @@ def ingest(runs: Sequence, spec: IngestSpec, store, *, executor=None,
     total = len(paths)
     done = 0
     latest: dict[str, RunResult] = {}
+    headers: dict[str, dict | str] = {}
 
-    def record(r: RunResult) -> None:
+    def refusal(r: RunResult, message: str) -> RunResult:
+        # the refused run's failure row is reported, not stored: under its file name it would replace the rows
+        # of the run that holds the name
+        if not r.ok and r.error:
+            message = f"{message} (the run also failed: {r.error})"
+        log.warning("%s", message)
+        h = headers.get(r.path)
+        return _failure(r.path, h if isinstance(h, Mapping) else {}, ctx.info, message, "run_id", r.line,
+                        error_type=RunIdCollision.__name__)
+
+    def record(r: RunResult, refused: str = "") -> RunResult:
+        """Write a task's result (or report its refusal, ``refused``); the result as recorded."""
         nonlocal done, total
         done += 1
         total = max(total, done)
-        st.write(r.line, r.run_id, ctx.info.model_hash, r.tables, replace_tables=(
-            ("runs", "windows", "variants", "spectra", "alignment", "failures")))
+        if refused:
+            r = refusal(r, refused)
+        else:
+            try:
+                st.write(r.line, r.run_id, ctx.info.model_hash, r.tables, replace_tables=RUN_TABLES,
+                         run=_run_identity(r.path, headers.get(r.path), r.run_id, r.date))
+            except RunIdCollision as exc:  # another ingest stored a different run under this name meanwhile
+                r = refusal(r, str(exc))
         latest[r.path] = r
         if not r.ok:
             say(done, total, f"{r.run_id}: FAILED ({r.error})")
@@ -526,9 +560,9 @@ def ingest(runs: Sequence, spec: IngestSpec, store, *, executor=None,
             say(done, total, f"{r.run_id}: rejected ({r.reason})")
         else:
             say(done, total, f"{r.run_id} ({r.date}) done in {r.timings_s.get('total', math.nan):.1f} s")
+        return r
 
     # 1. headers: group by day; the batch's line (for runs whose header cannot be read)
-    headers: dict[str, dict | str] = {}
     for p in paths:
         try:
             headers[p] = read_header(p)
@@ -536,17 +570,21 @@ def ingest(runs: Sequence, spec: IngestSpec, store, *, executor=None,
             headers[p] = str(exc)
     named = [str(h.get("line")) for h in headers.values() if isinstance(h, dict) and h.get("line")]
     batch_line = ctx.info.line or (max(sorted(set(named)), key=named.count) if named else "line")
+    refused = _run_id_collisions(paths, headers, st, ctx.info.line, batch_line)
     by_date: dict[str, list[tuple[str, str]]] = {}
     for p, h in headers.items():
+        d = str(h.get("date", "")) if isinstance(h, dict) else ""
         if not isinstance(h, dict):
-            record(_failure(p, {}, ctx.info, h, "header", batch_line))
+            r = _failure(p, {}, ctx.info, h, "header", batch_line)
+        elif not _DATE.match(d):
+            r = _failure(p, h, ctx.info, f"{p}: the run header's date must be YYYY-MM-DD, got {d!r}", "header",
+                         batch_line)
+        elif p in refused:  # never processed (nor a candidate for its day's reference)
+            r = RunResult(p, str(h.get("run_id")), d, ctx.info.line or str(h.get("line") or "line"), True)
+        else:
+            by_date.setdefault(d, []).append((str(h.get("run_id")), p))
             continue
-        d = str(h.get("date", ""))
-        if not _DATE.match(d):
-            record(_failure(p, h, ctx.info, f"{p}: the run header's date must be YYYY-MM-DD, got {d!r}", "header",
-                            batch_line))
-            continue
-        by_date.setdefault(d, []).append((str(h.get("run_id")), p))
+        record(r, refused.get(p, ""))
     order = {d: [p for _, p in sorted(v)] for d, v in sorted(by_date.items())}
     unc_k = spec.monitoring.uncertainty_runs
     line_for = {d: ctx.info.line or str(headers[ps[0]].get("line") or batch_line) for d, ps in order.items()}
@@ -576,8 +614,7 @@ def ingest(runs: Sequence, spec: IngestSpec, store, *, executor=None,
             for i, res in ex.run(process_run, calls):
                 d = dates[i]
                 path = pending[d][0]
-                r = _as_result(res, path, ctx, batch_line)
-                record(r)
+                r = record(_as_result(res, path, ctx, batch_line))
                 if r.ok and r.reference is not None:
                     refs[d] = r.reference
                     st.write_reference(r.line, d, ctx.info.model_hash, r.reference.frame(), r.reference.meta())
@@ -604,9 +641,7 @@ def ingest(runs: Sequence, spec: IngestSpec, store, *, executor=None,
         day_results: dict[str, list[RunResult]] = {d: [] for d in todo}
         for i, res in ex.run(process_run, calls):
             d, p = call_days[i]
-            r = _as_result(res, p, ctx, batch_line)
-            record(r)
-            day_results[d].append(r)
+            day_results[d].append(record(_as_result(res, p, ctx, batch_line)))
         again = {}
         for d, rs in day_results.items():
             rejected = sorted((r for r in rs if r.ok and not r.aligned), key=lambda r: r.run_id)
@@ -651,6 +686,48 @@ def ingest(runs: Sequence, spec: IngestSpec, store, *, executor=None,
         runs_df = runs_df.drop_duplicates("run_id")
     return IngestResult(lines[0] if lines else (ctx.info.line or ""), ctx.info.model_hash, runs_df, fails, dates,
                         ex.describe() if hasattr(ex, "describe") else type(ex).__name__, timings)
+
+
+def _run_id_collisions(paths: Sequence[str], headers: Mapping, store: MonitoringStore, line_id: str,
+                       batch_line: str) -> dict[str, str]:
+    """The runs of a batch to refuse before processing them, with the reason: their run id names the same file
+    as another run's on the same line (:func:`~estimator.monitoring.store.same_run`).
+
+    Every run of a group of the batch that share a file name is refused (which of them is "the" run is the
+    user's call: the message names the other file); a run whose name is held in the store by a different run is
+    refused, a run that is the stored one is re-processed (its rows replaced). A run id that cannot name a
+    file is refused too.
+    """
+    refused: dict[str, str] = {}
+    idents, groups = {}, {}
+    for p in paths:
+        h = headers.get(p)
+        dated = isinstance(h, Mapping) and _DATE.match(str(h.get("date", "")))
+        # the line the run's rows will be written to (process_run for a dated header, else the batch's: _failure)
+        line = line_id or (str(h.get("line") or "line") if dated else batch_line)
+        idents[p] = _run_identity(p, h)
+        try:
+            key = (safe_name(line), safe_name(idents[p]["run_id"]))
+        except StoreError as exc:
+            refused[p] = f"{p}: the run_id cannot be stored ({exc}); give the run another run_id in its header"
+            continue
+        groups.setdefault(key, []).append(p)
+    for ps in groups.values():
+        for p in ps if len(ps) > 1 else ():
+            others = [q for q in ps if q != p]
+            more = f" (and {len(others) - 1} more file(s) of the batch)" if len(others) > 1 else ""
+            refused[p] = collision_message(idents[p], idents[others[0]], "in this batch" + more)
+    stored = store.stored_runs(line_id or None)
+    if len(stored):
+        owners = {k: g.to_dict("records") for k, g in stored.groupby(["line", "key"], sort=False)}
+        for key, ps in groups.items():
+            for p in ps:
+                if p in refused:
+                    continue
+                other = next((o for o in owners.get(key, ()) if not same_run(o, idents[p])), None)
+                if other is not None:
+                    refused[p] = collision_message(idents[p], other)
+    return refused
 
 
 def wheelbase_retries(results: Mapping[str, RunResult], headers: Mapping, store: MonitoringStore, model_hash: str
