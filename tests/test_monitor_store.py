@@ -313,3 +313,18 @@ def test_ingest_refuses_run_ids_sharing_a_file_name_within_a_batch(field_runs, m
     assert "in this batch" in err[a] and "same file name 'T12_run_5'" in err[a]
     assert err[b].startswith(f"{b}: run_id 'T12_run_5'") and f"run_id 'T12/run 5' of {a}" in err[b]
     assert not st.files("runs") and not st.files("windows")
+
+
+def test_a_run_folder_names_the_tables_it_does_not_take_as_runs(tmp_path, caplog):
+    """A folder gives its MDF 4 files as runs (it also holds store files, trolley records and exports); Parquet and
+    CSV files beside them are passed over with a WARNING naming them, so a run table left in it is not lost unseen."""
+    import logging
+
+    from estimator.monitoring.workflow import collect_runs
+
+    (tmp_path / "day").mkdir()
+    for name in ("day/r1.mf4", "day/r2.parquet", "trolley.csv"):
+        (tmp_path / name).write_bytes(b"x")
+    with caplog.at_level(logging.WARNING, logger="estimator"):
+        assert collect_runs([tmp_path]) == [str(tmp_path / "day" / "r1.mf4")]
+    assert "2 Parquet/CSV file(s) not taken as runs" in caplog.text and "day/r2.parquet, trolley.csv" in caplog.text

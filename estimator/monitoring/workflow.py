@@ -451,6 +451,14 @@ def collect_runs(items: Sequence, limit: int = MAX_RUNS_PER_BATCH) -> list[str]:
                 raise MonitoringError(f"folder {p} holds no MDF 4 run file ({', '.join(RUN_PATTERNS)}); give Parquet "
                                       "or CSV runs as files")
             out += found
+            # a folder also holds store files, trolley records and exports, so only its MDF 4 files are runs; say
+            # which tables were passed over, in case they were runs
+            other = sorted(str(f.relative_to(p)) for pat in ("*.parquet", "*.csv") for f in p.rglob(pat)
+                           if f.is_file())
+            if other:
+                log.warning("folder %s: %d Parquet/CSV file(s) not taken as runs (a folder gives its MDF 4 files; "
+                            "give Parquet or CSV runs as files): %s%s", p, len(other), ", ".join(other[:5]),
+                            ", ..." if len(other) > 5 else "")
         elif p.is_file():
             out.append(str(p))
         else:
