@@ -14,7 +14,18 @@ ordinate type unknown (0), the ordinate units label decides (``m/s^2/N``,
 ``m/s/N``, ``m/N``, ``g/N``, ...); otherwise pass ``quantity=``. Data are
 converted to SI by their unit labels (numerator in g, mm/s², mm/s, mm or µm,
 denominator in kN or lbf: front-ends commonly export accelerance in g/N, as
-one label or as ``g`` over ``N``); unlabelled data are taken as SI.
+one label or as ``g`` over ``N``, or the whole unit over its force, ``m/s/N``
+over ``N``); unlabelled data are taken as SI, and so are data whose labels are
+not recognised, with a WARNING naming the datasets and the labels (as
+:func:`ema.read_hammer` does). Labels that name another quantity than the
+ordinate type (``m/s/N`` on an acceleration) are refused: the file contradicts
+itself, and ``quantity=`` decides.
+
+The data are checked before they are accepted: an FRF with NaN or infinite
+values or identically zero (a dead channel), a coherence with NaN or infinite
+values or outside [0, 1] raise :class:`~ema.hammer_io.UFFReadError` naming the
+file, the dataset, the response and the first offending frequency; coherence
+datasets without an FRF are ignored with a WARNING naming them.
 
 Exponential window.  An H1 estimated through an exponential window of decay
 ``a`` carries poles shifted by ``−a``; the identification removes the shift
@@ -62,28 +73,43 @@ _NUMERATOR_SI = {**{u: (f, "accelerance") for u, f in UNIT_TO_SI["acceleration"]
                  "\u00b5m": (1e-6, "receptance")}
 _DENOMINATOR_SI = UNIT_TO_SI["force"]
 _DECAY = re.compile(r"exp_window_decay\s*=\s*([0-9.eE+-]+)")
+_SPEC_NAMES = {12: "acceleration", 11: "velocity", 8: "displacement"}
+#: rounding allowance of a written coherence beyond [0, 1] (ASCII E-format and single precision round 1.0 either way)
+_COH_TOL = 1e-6
 
 
-def _frf_units(d: dict) -> tuple[float, str | None, str]:
-    """(factor to SI, quantity, label) of an FRF dataset from its ordinate and denominator unit labels.
+def _frf_units(d: dict) -> tuple[float, str | None, str, bool]:
+    """(factor to SI, quantity, label, recognised) of an FRF dataset from its ordinate and denominator unit labels.
 
-    ``g/N`` as one numerator label or as ``g`` over ``N``; a bracketed numerator (``(m/s^2)/N``) too. Labels it
-    does not know give factor 1 and no quantity (the data are taken as SI).
+    ``g/N`` as one numerator label or as ``g`` over ``N``; a bracketed numerator (``(m/s^2)/N``) too; the whole
+    FRF unit as numerator with its force repeated as denominator (``m/s/N`` over ``N``, as :func:`write_frf_uff`
+    writes). Unlabelled data (empty or ``NONE``) are SI and recognised. Labels it does not know give factor 1, no
+    quantity and ``recognised`` False: the caller warns that the data are taken as SI.
     """
-    num = str(d.get("ordinate_axis_units_lab", "") or "").strip().lower().replace(" ", "")
-    den = str(d.get("orddenom_axis_units_lab", "") or "").strip().lower().replace(" ", "")
-    label = num + (f" / {den}" if den else "")
-    if den in ("", "none") and "/" in num:
+    num_raw = str(d.get("ordinate_axis_units_lab", "") or "").strip()
+    den_raw = str(d.get("orddenom_axis_units_lab", "") or "").strip()
+    num = num_raw.lower().replace(" ", "")
+    den = den_raw.lower().replace(" ", "")
+    num = "" if num == "none" else num
+    den = "" if den == "none" else den
+    label = repr(num_raw) + (f" over {den_raw!r}" if den else "")
+    if not num and not den:
+        return 1.0, None, label, True
+    if num in _UNITS_TO_QUANTITY and den in ("", "n"):  # SI FRF units written as one label (m/N/s^2)
+        return 1.0, _UNITS_TO_QUANTITY[num], label, True
+    if "/" in num:
         head, _, tail = num.rpartition("/")
-        if tail in _DENOMINATOR_SI:
+        # the numerator may be the whole FRF unit; a denominator label equal to its force is that same force
+        # (a label, not a second division), any other denominator makes the pair ambiguous (not recognised)
+        if tail in _DENOMINATOR_SI and den in ("", tail):
             num, den = head, tail
     if num.startswith("(") and num.endswith(")"):
         num = num[1:-1]
-    top = _NUMERATOR_SI.get(num)
-    bottom = 1.0 if den in ("", "none") else _DENOMINATOR_SI.get(den)
+    top = _NUMERATOR_SI.get(num) if num else (1.0, None)  # an unlabelled numerator is SI, as unlabelled data are
+    bottom = _DENOMINATOR_SI.get(den) if den else 1.0
     if top is None or bottom is None:
-        return 1.0, None, label
-    return top[0] / bottom, top[1], label
+        return 1.0, None, label, False
+    return top[0] / bottom, top[1], label, True
 
 
 def _dir_label(code: int) -> str:
@@ -116,15 +142,22 @@ def read_frf_uff(path: str | os.PathLike, channels_csv=None, *, quantity: str | 
     -------
     FrequencyResponse
         Reference node(s) = inputs; coherence attached when the file has a
-        coherence dataset (function type 6) for every pair.
+        coherence dataset (function type 6) for every pair. Unrecognised units
+        labels (taken as SI) and labels overridden by ``quantity=`` are
+        logged (WARNING) and noted in ``history``.
 
     Raises
     ------
     UFFReadError
-        Unreadable, truncated or corrupt file.
+        Unreadable, truncated or corrupt file; an FRF with NaN or infinite
+        values or identically zero (dead channel); a coherence with NaN or
+        infinite values or outside [0, 1]. The message names the dataset,
+        the response and the first offending frequency.
     FunctionTypeError
         A dataset is neither an FRF nor a coherence, the ordinate is not
-        complex, the denominator is not a force, or the quantity cannot be told.
+        complex, the denominator is not a force, or the quantity cannot be
+        told: unknown, or the ordinate type and a units label disagree (and
+        ``quantity=`` is not given).
     ChannelMismatchError
         Duplicate pairs, missing pairs, or file and table disagree.
     SamplingError
@@ -180,6 +213,8 @@ def read_frf_uff(path: str | os.PathLike, channels_csv=None, *, quantity: str | 
 
     # quantity
     first = next(iter(frfs.values()))
+    quantity_given = quantity is not None
+    told_by = "quantity="  # what decided the quantity, for the message when a units label contradicts it
     if quantity is None:
         specs = {int(d["ordinate_spec_data_type"]) for d in frfs.values()}
         if len(specs) > 1:
@@ -187,9 +222,10 @@ def read_frf_uff(path: str | os.PathLike, channels_csv=None, *, quantity: str | 
         spec = specs.pop()
         if spec in _SPEC_TO_QUANTITY:
             quantity = _SPEC_TO_QUANTITY[spec]
+            told_by = f"the ordinate type {spec} ({_SPEC_NAMES[spec]})"
         elif spec == 0:
-            lab = str(first.get("ordinate_axis_units_lab", "")).strip().lower().replace(" ", "")
-            quantity = _frf_units(first)[1] or _UNITS_TO_QUANTITY.get(lab)
+            quantity = _frf_units(first)[1]
+            told_by = f"the units label of dataset {first['_index']}"
             if quantity is None:
                 raise FunctionTypeError(
                     f"{src}: cannot tell accelerance, mobility or receptance: ordinate type unknown (0) and units "
@@ -247,25 +283,83 @@ def read_frf_uff(path: str | os.PathLike, channels_csv=None, *, quantity: str | 
             raise ChannelMismatchError(f"{src}: response/reference labels are not unique: {out_labels} / {in_labels}")
 
     data = np.empty((len(outs), len(ins), x0.size), complex)
-    coh = np.empty(data.shape) if cohs else None
+    # coherence is attached only when every FRF has one; a file whose coherence pairs with no FRF has none
+    coh = np.empty(data.shape) if any(pr in frfs for pr in cohs) else None
     converted: set[str] = set()
+    unknown_units: dict[str, list[str]] = {}  # label -> the datasets carrying it, for one WARNING per label
+    overridden: dict[str, list[str]] = {}  # label quantity -> datasets whose label quantity= overrides
+    no_coh: list[str] = []
     for i, o in enumerate(outs):
         for k, r in enumerate(ins):
             if (o, r) not in frfs:
                 raise ChannelMismatchError(f"{src}: no FRF for response {o[0]}:{_dir_label(o[1])} and reference "
                                            f"{r[0]}:{_dir_label(r[1])}")
-            factor, _, label = _frf_units(frfs[(o, r)])
+            d = frfs[(o, r)]
+            if channels is not None:
+                resp = f"response {out_labels[i]!r} (node {o[0]}:{_dir_label(o[1])})"
+                ref = f"reference {in_labels[k]!r} (node {r[0]}:{_dir_label(r[1])})"
+            else:
+                resp, ref = f"response {out_labels[i]}", f"reference {in_labels[k]}"
+            channel = f"{resp}, {ref}"
+            factor, label_quantity, label, recognised = _frf_units(d)
+            if not recognised:
+                unknown_units.setdefault(label, []).append(f"dataset {d['_index']} ({resp})")
+            elif label_quantity is not None and label_quantity != quantity:
+                if not quantity_given:
+                    # a factor iw between the two readings: neither can be taken on trust
+                    raise FunctionTypeError(
+                        f"{src}: dataset {d['_index']}, {channel}: the units label {label} says {label_quantity} but "
+                        f"{told_by} says {quantity}; the file contradicts itself: correct it or pass quantity="
+                    )
+                overridden.setdefault(label_quantity, []).append(f"dataset {d['_index']} ({label})")
             if factor != 1.0:
                 converted.add(label)
-            data[i, k] = np.asarray(frfs[(o, r)]["data"]) * factor
-            if coh is not None:
-                if (o, r) in cohs:
-                    coh[i, k] = np.real(cohs[(o, r)]["data"])
-                else:
-                    log.warning("%s: coherence missing for response %s; coherence not attached", src, o[0])
-                    coh = None
-    if not np.all(np.isfinite(data)):
-        raise UFFReadError(f"{src}: the FRF data contain NaN or infinite values")
+            row = np.asarray(d["data"]) * factor
+            bad = ~np.isfinite(row)
+            if bad.any():
+                j = int(np.argmax(bad))
+                what = "NaN" if np.isnan(row[j]) else "infinite"
+                raise UFFReadError(f"{src}: dataset {d['_index']}, {channel}: the FRF is {what} at {x0[j]:g} Hz "
+                                   f"(first of {int(bad.sum())} NaN or infinite line(s))")
+            if not np.any(row):
+                # a dead sensor or cable; the FRF-file path has no per-channel rejection to report it through
+                # (the table requires every channel), so the user must fix the file or drop the channel
+                raise UFFReadError(f"{src}: dataset {d['_index']}, {channel}: FRF is identically zero (dead "
+                                   f"channel); remove the channel from the file and the channel table, or re-export it")
+            data[i, k] = row
+            if (o, r) in cohs:
+                c = cohs[(o, r)]
+                g2 = np.real(np.asarray(c["data"]))
+                # ordinary coherence lies in [0, 1]; 1e-6 either side absorbs the rounding of written values
+                # (ASCII E-format, single precision) without letting an impossible value through
+                bad = ~np.isfinite(g2) | (g2 > 1.0 + _COH_TOL) | (g2 < -_COH_TOL)
+                if bad.any():
+                    j = int(np.argmax(bad))
+                    raise UFFReadError(f"{src}: coherence dataset {c['_index']}, {channel}: coherence {g2[j]:g} at "
+                                       f"{x0[j]:g} Hz (first of {int(bad.sum())} line(s) NaN, infinite or outside "
+                                       f"[0, 1])")
+                if coh is not None:
+                    coh[i, k] = g2
+            elif coh is not None:
+                no_coh.append(f"dataset {d['_index']} ({resp})")
+    if no_coh:
+        log.warning("%s: no coherence dataset for the FRF(s) %s; coherence not attached", src, ", ".join(no_coh))
+        coh = None
+    orphans = [f"dataset {c['_index']} (response {pr[0][0]}:{_dir_label(pr[0][1])}, reference "
+               f"{pr[1][0]}:{_dir_label(pr[1][1])})" for pr, c in cohs.items() if pr not in frfs]
+    if orphans:
+        log.warning("%s: coherence %s without an FRF for the same response/reference pair; ignored", src,
+                    ", ".join(orphans))
+    read_notes: list[str] = []  # kept in the history: what was assumed or overridden in reading
+    for label, where in unknown_units.items():
+        msg = (f"units label {label} not recognised ({', '.join(where)}); the data are taken as SI "
+               f"({_QUANTITY_UNITS[quantity]})")
+        log.warning("%s: %s", src, msg)
+        read_notes.append(msg)
+    for label_quantity, where in overridden.items():
+        msg = f"units label(s) say {label_quantity} ({', '.join(where)}); read as {quantity} as quantity= says"
+        log.warning("%s: %s", src, msg)
+        read_notes.append(msg)
     if exp_window_decay is None:
         notes = {float(m.group(1)) for d in frfs.values() for m in [_DECAY.search(str(d.get("id3", "")))] if m}
         if len(notes) > 1:
@@ -273,7 +367,7 @@ def read_frf_uff(path: str | os.PathLike, channels_csv=None, *, quantity: str | 
         exp_window_decay = notes.pop() if notes else 0.0
     if not (np.isfinite(exp_window_decay) and exp_window_decay >= 0):
         raise ValueError(f"exp_window_decay must be a finite decay >= 0 [1/s], got {exp_window_decay!r}")
-    history = (f"read_frf_uff {src}",)
+    history = (f"read_frf_uff {src}", *read_notes)
     if converted:
         note = f"converted to SI ({_QUANTITY_UNITS[quantity]}) from {', '.join(sorted(converted))}"
         log.info("%s: %s", src, note)
