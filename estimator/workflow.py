@@ -52,7 +52,7 @@ from estimator.config import EstimatorConfig
 from estimator.contact_angles import CurvingModel, contact_angles
 from estimator.contact_filter import contact_gain
 from estimator.corrugation import MIN_PROMINENCE_DB, classify, model_resonances, spectral_peak
-from estimator.errors import ChannelError, NoValidDataError, WheelbaseError
+from estimator.errors import ChannelError, ConfigurationError, NoValidDataError, WheelbaseError
 from estimator.inversion import (TimeIrregularity, _log_smooth_rms, condition_by_band, invert, model_channels,
                                  rail_coupling, sample_many, wheelset_transfer)
 from estimator.io import LineDescription, read_line, read_run
@@ -111,6 +111,21 @@ class FieldModel:
     curving: CurvingModel = CurvingModel()
     provenance: tuple[str, ...] = ()
     cache: dict = field(default_factory=dict, repr=False)
+
+    def __post_init__(self):
+        # a calibration's angles are keyed by curve id: an id the line lacks (another line's calibration, a renamed
+        # curve) would otherwise be carried in the provenance as if it applied, while nothing uses it
+        wanted = sorted((self.config.curve_contact_angles or {}).keys())
+        if not wanted:
+            return
+        known = [c.id for c in self.line.curves] if self.line is not None else []
+        unknown = [c for c in wanted if c not in known]
+        if self.line is None:
+            raise ConfigurationError(f"calibrated contact angles are given for curve(s) {wanted}, which only a line "
+                                     "description can place: give the line (--line)")
+        if unknown:
+            raise ConfigurationError(f"calibrated contact angles are given for curve(s) {unknown}, which line "
+                                     f"{self.line.source or self.line.name!r} does not have (its curves: {known})")
 
     def trackforms(self) -> list[tuple[float, float, Trackform]]:
         """Trackform sections ``(from, to, Trackform)``; an explicit trackform applies everywhere."""

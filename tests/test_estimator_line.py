@@ -317,3 +317,26 @@ def test_bearing_estimate_is_closer_to_the_truth_after_the_lab_diagnosis():
     rms = e.groupby("model_state").apply(lambda g: float(np.sqrt(np.mean(g["rms_error_db"] ** 2))),
                                          include_groups=False)
     assert rms["after"] < rms["before"], e
+
+
+def test_calibrated_angles_for_a_curve_the_line_lacks_are_refused_not_carried_as_if_applied(tmp_path):
+    """A calibration holding contact angles for curve 'C9' prepared with a line whose only curve is 'C1' (another
+    line's calibration, a renamed curve) is a ConfigurationError naming both; without any line it says that the
+    angles need one; with the right id it prepares."""
+    import json
+
+    from estimator import ConfigurationError, EstimatorConfig, prepare, read_line
+    from test_estimator_synthetic import control_model, sensor_table
+
+    (tmp_path / "line.json").write_text(json.dumps({"name": "M1", "curves": [
+        {"id": "C1", "from_m": 100, "to_m": 300, "radius_m": 400, "direction": "left"}]}))
+    line = read_line(tmp_path / "line.json")
+    model, table = control_model(), sensor_table()
+    cfg = EstimatorConfig(curve_contact_angles={"C9": {"leading": (0.3, 0.03)}})
+    with pytest.raises(ConfigurationError, match=r"curve\(s\) \['C9'\], which line .*line.json' does not have "
+                                                 r"\(its curves: \['C1'\]\)"):
+        prepare(model, table, line=line, config=cfg)
+    with pytest.raises(ConfigurationError, match="only a line description can place"):
+        prepare(model, table, config=cfg)
+    fm = prepare(model, table, line=line, config=EstimatorConfig(curve_contact_angles={"C1": {"any": (0.3, 0.03)}}))
+    assert fm.config.curve_angles("C1", "leading", {"L": "L", "R": "R"}) == pytest.approx((-0.3, 0.03))
