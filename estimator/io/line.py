@@ -2,18 +2,26 @@
 
 ``line.json``: ``name, id, length, sleeper spacing, sections [{id, from_m, to_m}],
 curves [{from_m, to_m, radius_m, direction 'left'/'right', cant_mm,
-transition_in_m, transition_out_m}], switches, welds, balises [{id,
+transition_in_m, transition_out_m}], switches [{id, from_m, to_m,
+crossing_m, crossing_rail}], welds [{chainage_m, rail}], balises [{id,
 chainage_m}], stations, trackform sections [{from_m, to_m, trackform name,
 the receptance.Trackform fields}], speed limits``. Curvature and cant ramp
 linearly along the transitions (clothoids with linear cant ramps). A curve's
 ``direction`` is the way it turns looking towards increasing chainage; its
 low (inner) rail is ``R`` for a right curve and ``L`` for a left one.
 
+:func:`read_line` refuses what it cannot read as meant, naming the file and
+the entry (:class:`~estimator.errors.RunFileError`): stretches run towards
+increasing chainage and have a length; sections, curves and trackform
+sections may touch but not overlap (nested sections are not supported);
+a weld's or crossing's rail is ``L``, ``R`` or left out for both.
+
 Trolley files (``trolley/<date>.csv``): ``chainage_m, rail, roughness_um``.
 """
 
 from __future__ import annotations
 
+import difflib
 import json
 import logging
 import math
@@ -25,7 +33,7 @@ import numpy as np
 import pandas as pd
 
 from estimator.errors import RunFileError
-from receptance.trackform import Trackform, TrackformError
+from receptance.trackform import PLAUSIBLE, Trackform, TrackformError
 
 __all__ = ["Curve", "TrackSection", "LineDescription", "read_line", "read_trolley", "MAX_LINE_BYTES"]
 
@@ -132,26 +140,308 @@ class LineDescription:
         return ""
 
 
-def _f(d: Mapping, key: str, src: str, default=None) -> float:
+# --------------------------------------------------------------------------- reading line.json
+_REQUIRED = object()
+
+#: Keys a trackform section takes besides the Trackform fields: its stretch, its name (``trackform``, as the
+#: virtual line writes it, or ``name``/``id``), free-text notes (the virtual line writes ``note``) and
+#: ``parameters``, the Trackform fields as a nested object.
+_TRACKFORM_SECTION_KEYS = ("from_m", "to_m", "trackform", "name", "id", "note", "notes", "description", "comment",
+                           "parameters")
+_TRACKFORM_FIELD_ORDER = tuple(f.name for f in fields(Trackform))
+#: Sleeper spacings a line may state [m]: the physical range of a Trackform's support spacing, so that a spacing
+#: in mm (600) or a sign slip is refused rather than combing the spectra at a wavelength that is not there.
+_SLEEPER_SPACING_RANGE_M = PLAUSIBLE["support_spacing"]["physical"]
+
+
+class _RepeatedKey(Exception):
+    """A JSON object names a key twice (raised by :func:`_unique_keys`, reported as a RunFileError).
+
+    Not a ``ValueError``, so that it is not taken for a JSON syntax error.
+    """
+
+    def __init__(self, key: str, keys: list[str]):
+        super().__init__(key)
+        self.key, self.keys = key, ", ".join(keys[:12]) + (", ..." if len(keys) > 12 else "")
+
+
+def _unique_keys(pairs: list[tuple[str, object]]) -> dict:
+    """``object_pairs_hook`` refusing a repeated key, which plain ``json.loads`` would silently overwrite (a
+    second ``"curves"`` list appended to a file would hide the first)."""
+    out: dict = {}
+    for key, value in pairs:
+        if key in out:
+            raise _RepeatedKey(key, [k for k, _ in pairs])
+        out[key] = value
+    return out
+
+
+def _json_kind(v) -> str:
+    """``v`` as the JSON reader sees it (for messages): its JSON type and a short rendering."""
+    if v is None:
+        return "null"
+    # bool before int: JSON true/false arrive as Python bools, which are ints too
+    kinds = ((bool, "true/false"), ((int, float), "a number"), (str, "a string"), (list, "a list"),
+             (dict, "an object"))
+    kind = next((name for t, name in kinds if isinstance(v, t)), type(v).__name__)
+    text = repr(v)
+    return f"{kind} {text if len(text) <= 80 else text[:77] + '...'}"
+
+
+def _num(d: Mapping, key: str, src: str, item: str = "", default=_REQUIRED) -> float:
+    """``d[key]`` as a finite float, ``default`` when absent.
+
+    Parameters
+    ----------
+    d : mapping
+        The JSON object holding the value.
+    key : str
+    src : str
+        The file, for messages.
+    item : str
+        How messages name the entry (``curve 'C1'``, ``welds[3]``); empty for the file's top level.
+    default : float, optional
+        The value when ``key`` is absent; without it an absent key is an error.
+
+    Raises
+    ------
+    RunFileError
+        Naming the file, the item and the key: absent (without a default), not a number, or not finite.
+    """
+    at = f"{src}: {item}: " if item else f"{src}: "
     if key not in d:
-        if default is None:
-            raise RunFileError(f"{src}: entry {dict(d)!r} lacks {key!r}")
+        if default is _REQUIRED:
+            raise RunFileError(f"{at}{key!r} is missing")
         return default
+    v = d[key]
+    # JSON true/false would pass float() as 1/0: a flag where a chainage belongs is a slip, not a number
+    if isinstance(v, bool):
+        raise RunFileError(f"{at}{key!r} must be a number, got {v!r}")
     try:
-        v = float(d[key])
-    except (TypeError, ValueError):
-        raise RunFileError(f"{src}: {key!r} must be a number, got {d[key]!r}") from None
-    if not math.isfinite(v):
-        raise RunFileError(f"{src}: {key!r} must be finite, got {d[key]!r}")
+        x = float(v)
+    except (TypeError, ValueError, OverflowError):
+        hint = " (with a decimal point, not a comma)" if isinstance(v, str) and "," in v else ""
+        raise RunFileError(f"{at}{key!r} must be a number{hint}, got {_json_kind(v)}") from None
+    if not math.isfinite(x):
+        raise RunFileError(f"{at}{key!r} must be finite, got {v!r}")
+    return x
+
+
+def _given(d: Mapping, keys: tuple[str, ...], src: str) -> str | None:
+    """Which of ``keys`` (a name and its aliases) the file uses; None when none.
+
+    Two of them with different values would leave one silently unread, so that is refused.
+    """
+    given = [k for k in keys if k in d]
+    for k in given[1:]:
+        if d[k] != d[given[0]]:
+            raise RunFileError(f"{src}: both {given[0]!r} and {k!r} are given, with different values; "
+                               f"give one of them")
+    return given[0] if given else None
+
+
+def _entries(d: Mapping, keys: tuple[str, ...], src: str) -> tuple[str, list[dict]]:
+    """The list of objects under ``keys[0]`` (or an alias) and the key it came under; ``[]`` when absent.
+
+    Raises
+    ------
+    RunFileError
+        When the value is not a list (an object, null, a number) or an entry is not an object (a bare list of
+        numbers would leave which number is which to guessing).
+    """
+    key = _given(d, keys, src)
+    if key is None:
+        return keys[0], []
+    v = d[key]
+    if not isinstance(v, list):
+        raise RunFileError(f"{src}: {key!r} must be a list of objects [{{...}}, ...], got {_json_kind(v)}")
+    for i, e in enumerate(v):
+        if not isinstance(e, dict):
+            raise RunFileError(f"{src}: {key}[{i}] must be an object with named fields (like "
+                               f'{{"from_m": 0, "to_m": 100}}), got {_json_kind(e)}')
+    return key, v
+
+
+def _ident(e: Mapping) -> str | None:
+    """The entry's ``id`` as text, None when it has none."""
+    v = e.get("id")
+    return None if v is None or v == "" else str(v)
+
+
+def _label(e: Mapping, kind: str, key: str, i: int) -> str:
+    """How messages name an entry: ``section 'S1'`` by its id, else by its place in the list, ``sections[2]``."""
+    ident = _ident(e)
+    return f"{kind} {ident!r}" if ident is not None else f"{key}[{i}]"
+
+
+def _stretch(e: Mapping, src: str, item: str) -> tuple[float, float]:
+    """``(from_m, to_m)`` of a stretch, which runs towards increasing chainage and has a length.
+
+    A reversed or zero-length stretch holds no chainage: every lookup would miss it (no rows, zero curvature).
+    """
+    a, b = _num(e, "from_m", src, item), _num(e, "to_m", src, item)
+    if a > b:
+        raise RunFileError(f"{src}: {item}: from_m {a:g} > to_m {b:g} (a stretch runs towards increasing "
+                           "chainage)")
+    if a == b:
+        raise RunFileError(f"{src}: {item}: from_m = to_m = {a:g}, a stretch of zero length")
+    return a, b
+
+
+def _no_overlap(spans: list[tuple[str, float, float]], src: str, why: str) -> None:
+    """Refuse two of ``(label, from_m, to_m)`` sharing more than an end point.
+
+    Sorted by start, any overlap shows between neighbours, so one pass finds it.
+    """
+    s = sorted(spans, key=lambda t: (t[1], t[2]))
+    for (ia, a0, a1), (ib, b0, b1) in zip(s, s[1:]):
+        if b0 < a1:
+            raise RunFileError(f"{src}: {ia} ({a0:g}-{a1:g} m) and {ib} ({b0:g}-{b1:g} m) overlap; {why}")
+
+
+def _unique_ids(spans: list[tuple[str, float, float]], src: str, kind: str, why: str) -> None:
+    """Refuse an id given to two of ``(id, from_m, to_m)``."""
+    seen: dict[str, tuple[float, float]] = {}
+    for ident, a, b in spans:
+        if ident in seen:
+            raise RunFileError(f"{src}: {kind} id {ident!r} is given twice ({seen[ident][0]:g}-{seen[ident][1]:g} m "
+                               f"and {a:g}-{b:g} m); {why}")
+        seen[ident] = (a, b)
+
+
+def _rail(e: Mapping, key: str, src: str, item: str) -> None:
+    """Refuse a rail other than ``L``/``R`` (any case); absent, null or empty means both rails.
+
+    That is how the alignment reads welds and crossing noses (:func:`estimator.monitoring.alignment._line_features`);
+    there a weld on ``"left"`` would match neither rail and vanish, and a crossing on ``"left"`` would count on
+    both.
+    """
+    v = e.get(key)
+    if v is None or v == "":
+        return
+    if not isinstance(v, str) or v.upper() not in ("L", "R"):
+        raise RunFileError(f"{src}: {item}: {key!r} must be 'L' or 'R' (rails named looking towards increasing "
+                           f"chainage), or left out for both rails; got {_json_kind(v)}")
+
+
+def _curve(e: Mapping, i: int, src: str) -> Curve:
+    """One entry of ``curves`` (module docstring), checked: a stretch, a radius, transitions that fit."""
+    item = _label(e, "curve", "curves", i)
+    direction = str(e.get("direction", "")).lower()
+    if direction not in ("left", "right"):
+        raise RunFileError(f"{src}: {item}: direction must be 'left' or 'right', got {e.get('direction')!r}")
+    r = _num(e, "radius_m", src, item)
+    if r <= 0:
+        raise RunFileError(f"{src}: {item}: radius_m must be > 0, got {r:g}")
+    a, b = _stretch(e, src, item)
+    t_in, t_out = _num(e, "transition_in_m", src, item, 0.0), _num(e, "transition_out_m", src, item, 0.0)
+    for key, t in (("transition_in_m", t_in), ("transition_out_m", t_out)):
+        if t < 0:
+            raise RunFileError(f"{src}: {item}: {key} must be >= 0, got {t:g}")
+    # the two ramps would cross below 1: the curvature would never reach 1/R nor the cant its value
+    if t_in + t_out - (b - a) > 1e-9 * max(1.0, b - a):
+        raise RunFileError(f"{src}: {item}: transitions {t_in:g} m + {t_out:g} m are longer than the curve "
+                           f"({a:g}-{b:g} m, {b - a:g} m); its curvature would never reach 1/radius_m")
+    return Curve(_ident(e) or f"curve_{i + 1}", a, b, r, direction, _num(e, "cant_mm", src, item, 0.0), t_in, t_out)
+
+
+def _trackform_section(e: Mapping, i: int, key: str, src: str) -> TrackSection:
+    """One trackform section: its stretch and the Trackform of its flat or nested (``parameters``) fields.
+
+    Every key must be known: a misspelt field (``pad_stifness``) would otherwise leave the trackform at its
+    default unannounced.
+    """
+    name = str(e.get("trackform", e.get("name", e.get("id", f"trackform_{i + 1}"))))
+    item = f"{key}[{i}] {name!r}"
+    nested = e.get("parameters")
+    if nested is None:
+        nested = {}
+    if not isinstance(nested, dict):
+        raise RunFileError(f"{src}: {item}: 'parameters' must be an object of Trackform fields, got "
+                           f"{_json_kind(nested)}")
+    unknown = [k for k in e if k not in _TRACKFORM_FIELDS and k not in _TRACKFORM_SECTION_KEYS]
+    unknown += [f"parameters.{k}" for k in nested if k not in _TRACKFORM_FIELDS]
+    if unknown:
+        valid = _TRACKFORM_SECTION_KEYS + _TRACKFORM_FIELD_ORDER
+        hints = []
+        for k in unknown:
+            close = difflib.get_close_matches(k.removeprefix("parameters."), valid, n=1, cutoff=0.75)
+            if close:
+                hints.append(f"{k!r}: did you mean {close[0]!r}?")
+        raise RunFileError(f"{src}: {item}: unknown key(s) {', '.join(map(repr, unknown))}"
+                           + (f" ({'; '.join(hints)})" if hints else "")
+                           + f"; a trackform section takes {', '.join(_TRACKFORM_SECTION_KEYS)} and the Trackform "
+                           f"fields {', '.join(_TRACKFORM_FIELD_ORDER)}")
+    flat = {k: v for k, v in e.items() if k in _TRACKFORM_FIELDS}
+    twice = [k for k in flat if k in nested and nested[k] != flat[k]]
+    if twice:
+        raise RunFileError(f"{src}: {item}: {', '.join(map(repr, twice))} given both flat and in 'parameters', "
+                           "with different values; give each once")
+    a, b = _stretch(e, src, item)
+    params = {**flat, **nested}
+    tf = None
+    if params:
+        try:
+            tf = Trackform(**params)
+        except (TrackformError, TypeError) as exc:
+            # Trackform names itself "<Trackform(...)>"; the item already says where the value came from
+            raise RunFileError(f"{src}: {item}: {str(exc).replace('<Trackform(...)>: ', '')}") from None
+    return TrackSection(name, a, b, tf)
+
+
+def _switch(e: Mapping, i: int, src: str) -> tuple[float, float]:
+    """One switch: its stretch; its crossing nose (``crossing_m``, ``crossing_rail``) checked for the alignment."""
+    item = _label(e, "switch", "switches", i)
+    a, b = _stretch(e, src, item)
+    # the alignment skips a crossing whose chainage is not a number (a feature lost unannounced)
+    if "crossing_m" in e:
+        _num(e, "crossing_m", src, item)
+    _rail(e, "crossing_rail", src, item)
+    return a, b
+
+
+def _weld(e: Mapping, i: int, src: str) -> float:
+    """One weld's chainage; its ``rail`` (L, R, or absent for both) checked for the alignment."""
+    item = f"welds[{i}]"
+    x = _num(e, "chainage_m", src, item)
+    _rail(e, "rail", src, f"{item} at {x:g} m")
+    return x
+
+
+def _positive(d: Mapping, keys: tuple[str, ...], src: str, default: float) -> float:
+    """A top-level number > 0 under ``keys[0]`` or an alias, ``default`` when absent."""
+    key = _given(d, keys, src)
+    if key is None:
+        return default
+    v = _num(d, key, src)
+    if v <= 0:
+        raise RunFileError(f"{src}: {key!r} must be > 0, got {v:g}")
     return v
 
 
 def read_line(path) -> LineDescription:
-    """Read ``line.json`` (field contract); unknown keys are kept in ``raw``.
+    """Read and check ``line.json`` (field contract, module docstring); unknown top-level keys are kept in ``raw``.
+
+    Every entry the estimator uses is checked, and refused by name (the file and the entry, ``section 'S1'`` or
+    ``curves[2]``) rather than read into something else: lists that are not lists of objects, numbers that are
+    not numbers, stretches that are reversed or of zero length, curves whose transitions do not fit, overlapping
+    sections, curves or trackform sections (each chainage has one), repeated section or curve ids, unknown
+    trackform keys, weld and crossing rails other than L/R, a sleeper spacing outside 0.1-5 m.
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    LineDescription
 
     Raises
     ------
-    FileNotFoundError, RunFileError
+    FileNotFoundError
+        When the file does not exist.
+    RunFileError
+        Naming the file and the offending entry and value.
     """
     p = Path(path)
     if not p.is_file():
@@ -159,47 +449,70 @@ def read_line(path) -> LineDescription:
     if p.stat().st_size > MAX_LINE_BYTES:
         raise RunFileError(f"{p}: {p.stat().st_size} bytes; a line description is at most {MAX_LINE_BYTES}")
     try:
-        d = json.loads(p.read_text(encoding="utf-8-sig"))
+        d = json.loads(p.read_text(encoding="utf-8-sig"), object_pairs_hook=_unique_keys)
+    except _RepeatedKey as exc:
+        raise RunFileError(f"{p}: key {exc.key!r} is given twice in one object ({exc.keys}); plain JSON keeps "
+                           "the last one, so give each key once") from None
     except (ValueError, UnicodeDecodeError) as exc:
         raise RunFileError(f"{p}: not a JSON line description ({exc})") from None
     if not isinstance(d, dict):
         raise RunFileError(f"{p}: a line description is a JSON object")
     src = str(p)
-    curves = []
-    for i, c in enumerate(d.get("curves", [])):
-        direction = str(c.get("direction", "")).lower()
-        if direction not in ("left", "right"):
-            raise RunFileError(f"{src}: curve {i}: direction must be 'left' or 'right', got {c.get('direction')!r}")
-        r = _f(c, "radius_m", src)
-        if r <= 0:
-            raise RunFileError(f"{src}: curve {i}: radius_m must be > 0, got {r}")
-        curves.append(Curve(str(c.get("id", f"curve_{i + 1}")), _f(c, "from_m", src), _f(c, "to_m", src), r,
-                            direction, _f(c, "cant_mm", src, 0.0), _f(c, "transition_in_m", src, 0.0),
-                            _f(c, "transition_out_m", src, 0.0)))
-    sections = tuple(TrackSection(str(s.get("id", f"section_{i + 1}")), _f(s, "from_m", src), _f(s, "to_m", src))
-                     for i, s in enumerate(d.get("sections", [])))
-    trackforms = []
-    for i, t in enumerate(d.get("trackforms", d.get("trackform_sections", []))):
-        params = {k: v for k, v in t.items() if k in _TRACKFORM_FIELDS}
-        if isinstance(t.get("parameters"), dict):
-            params.update({k: v for k, v in t["parameters"].items() if k in _TRACKFORM_FIELDS})
-        tf = None
-        if params:
-            try:
-                tf = Trackform(**{**{f: getattr(Trackform(), f) for f in _TRACKFORM_FIELDS}, **params})
-            except (TrackformError, TypeError) as exc:
-                raise RunFileError(f"{src}: trackform section {i}: {exc}") from None
-        name = str(t.get("trackform", t.get("name", t.get("id", f"trackform_{i + 1}"))))
-        trackforms.append(TrackSection(name, _f(t, "from_m", src), _f(t, "to_m", src), tf))
-    balises = tuple((str(b.get("id", i)), _f(b, "chainage_m", src)) for i, b in enumerate(d.get("balises", [])))
-    switches = tuple((_f(s, "from_m", src), _f(s, "to_m", src)) for s in d.get("switches", []))
-    welds = tuple(_f(w, "chainage_m", src) for w in d.get("welds", []))
-    length = d.get("length_m", d.get("length", math.inf))
-    spacing = d.get("sleeper_spacing_m", d.get("sleeper_spacing", 0.75))
-    return LineDescription(name=str(d.get("name", "")), id=str(d.get("id", "")), length_m=float(length),
-                           sleeper_spacing_m=float(spacing), sections=sections, curves=tuple(curves),
+
+    curves = [_curve(c, i, src) for i, c in enumerate(_entries(d, ("curves",), src)[1])]
+    _unique_ids([(c.id, c.from_m, c.to_m) for c in curves], src, "curve",
+                "curves are looked up by id (calibrated contact angles)")
+    _no_overlap([(f"curve {c.id!r}", c.from_m, c.to_m) for c in curves], src,
+                "curves may touch but not overlap (a chainage has one curvature and one cant)")
+
+    sections = []
+    for i, s in enumerate(_entries(d, ("sections",), src)[1]):
+        item = _label(s, "section", "sections", i)
+        sections.append(TrackSection(_ident(s) or f"section_{i + 1}", *_stretch(s, src, item)))
+    _unique_ids([(s.id, s.from_m, s.to_m) for s in sections], src, "section",
+                "results are reported per section id")
+    # nested sections are not supported: the monitoring names a chainage by the section starting last before it
+    # (estimator.monitoring.records.Sections.at), so an outer section would lose the chainages past an inner one
+    _no_overlap([(f"section {s.id!r}", s.from_m, s.to_m) for s in sections], src,
+                "sections may touch but not overlap or nest (each chainage belongs to one section)")
+
+    tf_key, tf_entries = _entries(d, ("trackforms", "trackform_sections"), src)
+    trackforms = [_trackform_section(t, i, tf_key, src) for i, t in enumerate(tf_entries)]
+    # the estimate's track model takes the last section holding a chainage, trackform_at the first
+    _no_overlap([(f"{tf_key}[{i}] {t.id!r}", t.from_m, t.to_m) for i, t in enumerate(trackforms)], src,
+                "trackform sections may touch but not overlap (a chainage has one trackform)")
+
+    balises = tuple((_ident(b) or str(i), _num(b, "chainage_m", src, _label(b, "balise", "balises", i)))
+                    for i, b in enumerate(_entries(d, ("balises",), src)[1]))
+    switches = tuple(_switch(s, i, src) for i, s in enumerate(_entries(d, ("switches",), src)[1]))
+    welds = tuple(_weld(w, i, src) for i, w in enumerate(_entries(d, ("welds",), src)[1]))
+
+    length = _positive(d, ("length_m", "length"), src, math.inf)
+    spacing = _positive(d, ("sleeper_spacing_m", "sleeper_spacing"), src, 0.75)
+    lo, hi = _SLEEPER_SPACING_RANGE_M
+    if not lo <= spacing <= hi:
+        raise RunFileError(f"{src}: sleeper spacing {spacing:g} m is outside {lo:g}-{hi:g} m (a spacing in mm?)")
+    return LineDescription(name=str(d.get("name", "")), id=str(d.get("id", "")), length_m=length,
+                           sleeper_spacing_m=spacing, sections=tuple(sections), curves=tuple(curves),
                            trackforms=tuple(trackforms), balises=balises, switches=switches, welds=welds, source=src,
                            raw=d)
+
+
+def _trolley_csv(p: Path) -> pd.DataFrame:
+    """The trolley file as pandas reads it; an empty or unparsable file is a RunFileError naming it.
+
+    pandas' own errors (``No columns to parse from file``, ``Expected 3 fields in line 7``) do not say which file,
+    and a run given several references could not tell them apart.
+    """
+    try:
+        return pd.read_csv(p, encoding="utf-8-sig")
+    except pd.errors.EmptyDataError:
+        raise RunFileError(f"{p}: the trolley file is empty; expected a header chainage_m, rail, roughness_um and "
+                           "one row per reading") from None
+    except UnicodeDecodeError as exc:
+        raise RunFileError(f"{p}: not a text (UTF-8) trolley CSV ({exc.reason})") from None
+    except (pd.errors.ParserError, ValueError) as exc:
+        raise RunFileError(f"{p}: not a readable trolley CSV ({str(exc).strip()})") from None
 
 
 def read_trolley(path) -> pd.DataFrame:
@@ -213,7 +526,7 @@ def read_trolley(path) -> pd.DataFrame:
     p = Path(path)
     if not p.is_file():
         raise FileNotFoundError(f"trolley file {p} does not exist")
-    df = pd.read_csv(p, encoding="utf-8-sig")
+    df = _trolley_csv(p)
     need = [c for c in ("chainage_m", "rail", "roughness_um") if c not in df.columns]
     if need:
         raise RunFileError(f"{p}: trolley file lacks column(s) {need} (chainage_m, rail, roughness_um)")
@@ -226,8 +539,8 @@ def read_trolley(path) -> pd.DataFrame:
     bad_rows = out.index[out.isna().any(axis=1)]
     if len(bad_rows):
         log.warning("%s: %d trolley row(s) without a numeric chainage or roughness left out (file line(s) %s%s); "
-                    "the comparison treats them as a gap", p, len(bad_rows),
-                    ", ".join(str(i + 2) for i in bad_rows[:10]), ", ..." if len(bad_rows) > 10 else "")
+                    "the comparison interpolates across up to 5 missing samples, longer stretches are gaps", p,
+                    len(bad_rows), ", ".join(str(i + 2) for i in bad_rows[:10]), ", ..." if len(bad_rows) > 10 else "")
     out = out.dropna().sort_values(["rail", "chainage_m"], kind="stable").reset_index(drop=True)
     twice = out[out.duplicated(["rail", "chainage_m"], keep=False)]
     if len(twice):
