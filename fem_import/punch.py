@@ -236,7 +236,8 @@ def read_punch(path: str, *, subcase: int | None = None) -> FEModes:
         If the file has no real eigenvectors, several subcases and no
         ``subcase``, a truncated or malformed card (names the line), a mode
         whose grid set differs from the first mode's (names mode and grid),
-        a repeated grid, or a non-finite value (names mode and grid).
+        a repeated grid, a mode number given twice in the subcase read (names
+        both lines), or a non-finite value (names mode and grid).
     """
     with open(path, encoding="latin-1", newline=None) as fh:
         text = fh.read()
@@ -258,6 +259,15 @@ def read_punch(path: str, *, subcase: int | None = None) -> FEModes:
             raise FEReadError(path, f"subcase {subcase!r} is not in the file; it has subcases {subcases}")
         modes = [m for m in modes if m.subcase == subcase]
 
+    # Two punch runs concatenated (or a block pasted twice) give MODE 1, 2, 3, 1, 2, 3 in one subcase: read in
+    # file order they would be six modes, three of them spurious, and pairing would take them as real.
+    given: dict[int, int] = {}
+    for m in modes:
+        if m.number in given:
+            raise FEReadError(path, f"MODE {m.number} already given at line {given[m.number]} (subcase "
+                              f"{m.subcase if m.subcase is not None else 'not given'}); a mode number may appear "
+                              f"once per subcase: are two punch files concatenated?", line=m.line)
+        given[m.number] = m.line
     first = modes[0]
     for m in modes:
         if not m.ids:

@@ -12,13 +12,15 @@ Datasets used (layouts: UC-SDRL universal file descriptions, as printed by
   ``1 / sqrt(mass)`` and rotations in ``1 / (length sqrt(mass))``, so
   translations are divided by ``sqrt(Mk)`` and rotations multiplied by
   ``L / sqrt(Mk)``.  A non-SI code without usable factors raises
-  :class:`FEReadError`.
+  :class:`FEReadError`, and so does a second 164 with other factors (the
+  units apply to the whole file; an identical repeat is accepted).
 * **2411** nodes (double precision) and the legacy **15** (single precision):
   labels and coordinates, in the global Cartesian system: labels 0 and 1,
   or a system that **2420** defines as Cartesian with the identity rotation
   at the origin.  Nodes in any other system of 2420 (rotated, shifted,
   cylindrical, spherical) are refused, naming the nodes and the system;
-  a label that no 2420 defines is logged and taken as global.
+  a label that no 2420 defines is logged and taken as global; a label that
+  2420 defines twice differently is refused (an identical repeat is accepted).
 * **2412** elements: label, FE descriptor id, physical property and node
   labels.  pyuff reads only the first line of node labels (8 labels), which
   covers beams, triangles, quadrilaterals and masses; an element with more
@@ -29,7 +31,8 @@ Datasets used (layouts: UC-SDRL universal file descriptions, as printed by
   frequency [Hz] and the modal mass.  Shapes with a modal mass ``m`` other
   than 1 are scaled to unit modal mass, ``phi / sqrt(m)``; a modal mass of 0
   (pyuff's default when writing) is taken as "already mass-normalised" with a
-  logged warning.
+  logged warning.  A mode number (record 7) that two datasets give is
+  refused (0 means "not numbered" and may repeat).
 * **2414** analysis data, the form current FE post-processors (Simcenter/NX,
   FEMAP, Salome-Meca) write results in: a dataset is a mode shape when its
   data sit at nodes (record 3 = 1), its analysis type is 2 (normal mode) and
@@ -243,6 +246,9 @@ def _read_parts_with(path: str, readable: str, data: bytes, frames, *, want_mode
     node_chunks: list[tuple[np.ndarray, np.ndarray, int, np.ndarray]] = []
     element_sets: list[tuple[dict, int]] = []
     systems: dict[int, tuple[int, str, np.ndarray]] = {}
+    system_lines: dict[int, int] = {}  # label -> line of the 2420 dataset that defines it
+    units_line: int | None = None      # line of the first 164 (the one in force) ...
+    units_said = ""                    # ... and its units, as an error message quotes them
     wanted = {15, 164, 2411, 2412, 2420} | ({55, 2414} if want_modes else set())
     ignored: dict[int, int] = {}
     for k, (kind, line) in enumerate(zip(types.tolist(), start_lines)):
@@ -283,15 +289,28 @@ def _read_parts_with(path: str, readable: str, data: bytes, frames, *, want_mode
             raise FEReadError(path, f"pyuff returned {type(dset).__name__} instead of a dataset dict",
                               dataset=str(kind), line=line)
         if kind == 164:
-            parts.length_factor, parts.mass_factor, parts.units = _units_factors(path, dset, line)
+            factors = _units_factors(path, dset, line)
+            said = (f"units code {dset.get('units_code')!r} {str(dset.get('units_description', '')).strip()!r}, "
+                    f"length factor {factors[0]:g}, mass factor {factors[1]:g}")
+            if units_line is None:
+                parts.length_factor, parts.mass_factor, parts.units = factors
+                units_line, units_said = line, said
+            elif not (math.isclose(factors[0], parts.length_factor, rel_tol=1e-12)
+                      and math.isclose(factors[1], parts.mass_factor, rel_tol=1e-12)):
+                # the units apply to the whole file (a 164 placed anywhere scales every coordinate and shape):
+                # a second, different 164 would silently rescale what the first one described
+                raise FEReadError(path, f"units differ from dataset 164 at line {units_line}: {said} here, "
+                                  f"{units_said} there; a file has one unit system: keep one dataset 164",
+                                  dataset="164", line=line)
         elif kind in (2411, 15):
             node_chunks.append(_nodes(path, dset, kind, line))
         elif kind == 2412:
             element_sets.append((dset, line))
         elif kind == 2420:
-            systems.update(_coordinate_systems(path, dset, line))
+            _add_systems(path, systems, system_lines, _coordinate_systems(path, dset, line), line)
         else:
             parts.modes.append(_mode(path, dset, line, len(parts.modes) + 1))
+    _check_mode_numbers(path, parts.modes)
     odd: dict = {}
     for md in parts.modes:
         if md["spec"] not in (8, 0, None):
@@ -373,8 +392,11 @@ def _nodes(path, dset, kind, line) -> tuple[np.ndarray, np.ndarray, int, np.ndar
     return ids, xyz, line, np.column_stack(cols[1:3]).astype(int)
 
 
-def _coordinate_systems(path, dset, line) -> dict[int, tuple[int, str, np.ndarray]]:
-    """Dataset 2420 through pyuff: label -> (type 0/1/2, name, 4 x 3 matrix: rotation rows, then the origin)."""
+def _coordinate_systems(path, dset, line) -> list[tuple[int, int, str, np.ndarray]]:
+    """Dataset 2420 through pyuff: (label, type 0/1/2, name, 4 x 3 matrix: rotation rows, then the origin) each.
+
+    A list, not a dict: a label repeated inside the dataset must reach :func:`_add_systems`, not vanish.
+    """
     try:
         labels = [int(v) for v in dset["CS_sys_labels"]]
         types = [int(v) for v in dset["CS_types"]]
@@ -386,10 +408,40 @@ def _coordinate_systems(path, dset, line) -> dict[int, tuple[int, str, np.ndarra
     if not len(labels) == len(types) == len(names) == len(mats):
         raise FEReadError(path, "coordinate systems with missing records (label, type, name and 4 matrix rows "
                           "each): a record is truncated", dataset="2420", line=line)
-    return {lab: (typ, name, m) for lab, typ, name, m in zip(labels, types, names, mats)}
+    return list(zip(labels, types, names, mats))
+
+
+def _add_systems(path, systems, system_lines, new, line) -> None:
+    """Add the coordinate systems of one dataset 2420 (at ``line``) to ``systems``, refusing a conflicting label.
+
+    A label defined twice with different definitions would leave the later one in force for every node that
+    names it, without a word; which one the exporter meant cannot be told, so the file is refused. A repeat of
+    the same definition (type, rotation and origin; the name is only a comment) is harmless and accepted.
+
+    Raises
+    ------
+    FEReadError
+        Names the label, both lines and both definitions.
+    """
+    for lab, typ, name, m in new:
+        if lab in systems:
+            typ0, _, m0 = systems[lab]
+            if typ != typ0 or not np.allclose(m, m0, rtol=1e-12, atol=1e-12):
+                raise FEReadError(path, f"coordinate system {lab} is already defined by dataset 2420 at line "
+                                  f"{system_lines[lab]} ({_show_system(typ0, m0)}) and is defined again here with "
+                                  f"another definition ({_show_system(typ, m)}); which one holds cannot be told: "
+                                  f"keep one", dataset="2420", line=line)
+            continue
+        systems[lab] = (typ, name, m)
+        system_lines[lab] = line
 
 
 _CS_TYPES = {0: "Cartesian", 1: "cylindrical", 2: "spherical"}
+
+
+def _show_system(typ: int, m: np.ndarray) -> str:
+    """A coordinate system of 2420 as an error message quotes it: kind, rotation rows, origin."""
+    return f"{_CS_TYPES.get(typ, f'type {typ}')}, rotation {m[:3].tolist()}, origin {m[3].tolist()}"
 
 
 def _check_node_systems(path, node_ids, node_cs, systems, line, scale: float) -> None:
@@ -455,6 +507,42 @@ def _elements(path, dset, line, known: set[int] | None) -> list[Element]:
                                       f"are not in the node dataset (2411/15)", dataset="2412", line=line)
             out.append(Element(eid, int(desc), nodes, prop))
     return out
+
+
+def _check_mode_numbers(path, modes: list[dict]) -> None:
+    """Refuse a mode number that two datasets (55 or 2414) give.
+
+    Two exports concatenated, or a dataset pasted twice, would otherwise be read as extra modes (spurious
+    partners in the pairing). Only positive numbers are compared: 0 (pyuff's default when writing) or a missing
+    number means "not numbered", and some exporters leave every mode so.
+
+    Raises
+    ------
+    FEReadError
+        Names the mode number and the lines of both datasets; an exact copy (same frequency, nodes and values)
+        is called "the same mode written twice".
+    """
+    given: dict[int, dict] = {}
+    for md in modes:
+        try:
+            n = int(md["mode_n"])
+        except (TypeError, ValueError, OverflowError):
+            continue
+        if n <= 0:
+            continue
+        prev = given.get(n)
+        if prev is None:
+            given[n] = md
+            continue
+        if (prev["freq"] == md["freq"] and np.array_equal(prev["ids"], md["ids"])
+                and np.array_equal(prev["vals"], md["vals"])):
+            what = (f"modes {prev['k']} and {md['k']} are the same mode written twice (mode number {n}, "
+                    f"{md['freq']:.6g} Hz, at lines {prev['line']} and {md['line']}): remove the duplicate")
+        else:
+            what = (f"mode number {n} already given at line {prev['line']} (dataset {prev['where']}, "
+                    f"{prev['freq']:.6g} Hz; this one {md['freq']:.6g} Hz): a mode number may appear once; "
+                    f"are two exports concatenated?")
+        raise FEReadError(path, what, dataset=md["where"], line=md["line"])
 
 
 def _mode(path, dset, line, k) -> dict:
@@ -613,9 +701,11 @@ def read_uff(path: str) -> FEModes:
     FEReadError
         If the file is truncated or corrupt, has no mode shape (55 or 2414), mixes 3- and
         6-DOF shapes, if a mode misses a node of the others, if a mode has a
-        node unknown to dataset 2411, if a shape value is not finite, or if
-        the units cannot be converted to SI.  The message names the file,
-        dataset and line.
+        node unknown to dataset 2411, if a shape value is not finite, if two
+        datasets give the same mode number, if the units cannot be converted
+        to SI or two datasets 164 disagree, or if a coordinate system is
+        defined twice differently.  The message names the file, dataset and
+        line.
     """
     parts = _read_parts(path, want_modes=True)
     if not parts.modes:

@@ -11,8 +11,8 @@ A TOML (``.toml``) or JSON (``.json``) file whose keys are exactly the
 field names of :class:`Trackform`, all in SI units, either at the top level
 or inside a ``[trackform]`` table / ``{"trackform": {...}}`` object.  Every
 field must be present (no silent defaults from a file) except the optional
-``loss_reference_hz`` (absent: eq. 2.32's constant loss), no unknown key is
-accepted, and every value must be a finite number > 0 inside its physical range
+``loss_reference_hz`` (absent: eq. 2.32's constant loss), no unknown or
+repeated key is accepted, and every value must be a finite number > 0 inside its physical range
 (:data:`PLAUSIBLE`, :func:`check_trackform`: refused outside it, a warning
 outside the typical range; a UTF-8 byte-order mark is accepted)::
 
@@ -243,6 +243,38 @@ def trackform_to_dict(trackform: Trackform) -> dict[str, float]:
     return {k: v for k, v in asdict(trackform).items() if not (k in OPTIONAL and v is None)}
 
 
+class _DuplicateKey(Exception):
+    """A JSON object names a key twice (raised by :func:`_unique_keys`, reported as :class:`TrackformError`).
+
+    Not a ``ValueError``: it must not be taken for a JSON syntax error, whose
+    message would not name the key.
+    """
+
+    def __init__(self, key: str):
+        super().__init__(key)
+        self.key = key
+
+
+def _unique_keys(pairs: list[tuple[str, object]]) -> dict:
+    """``object_pairs_hook`` for :func:`json.loads` that refuses a repeated key.
+
+    Plain ``json.loads`` keeps the last of two equal keys, so a trackform
+    edited by appending a line would silently take the appended value (TOML
+    refuses a repeated key; JSON must not be more lenient).
+
+    Raises
+    ------
+    _DuplicateKey
+        Naming the first key given twice.
+    """
+    out: dict = {}
+    for key, value in pairs:
+        if key in out:
+            raise _DuplicateKey(key)
+        out[key] = value
+    return out
+
+
 def load_trackform(path: str | Path) -> Trackform:
     """Read a :class:`Trackform` from a TOML or JSON file.
 
@@ -259,9 +291,9 @@ def load_trackform(path: str | Path) -> Trackform:
     Raises
     ------
     TrackformError
-        Unsupported extension, unparsable or too deeply nested file, unknown
-        or missing keys, a non-numeric / non-positive value, or one outside its
-        physical range — the message names the file, the key and the range.
+        Unsupported extension, unparsable or too deeply nested file, unknown,
+        missing or repeated keys, a non-numeric / non-positive value, or one
+        outside its physical range — the message names the file, the key and the range.
 
     Warns
     -----
@@ -286,7 +318,10 @@ def load_trackform(path: str | Path) -> Trackform:
     except UnicodeDecodeError as exc:
         raise TrackformError(f"{path}: not UTF-8 text (byte {exc.start}); save the trackform as UTF-8") from None
     try:
-        raw = tomllib.loads(decoded) if suffix == ".toml" else json.loads(decoded)
+        raw = tomllib.loads(decoded) if suffix == ".toml" else json.loads(decoded, object_pairs_hook=_unique_keys)
+    except _DuplicateKey as exc:
+        raise TrackformError(f"{path}: key {exc.key!r} given twice; a key may appear once (which value is meant?)") \
+            from None
     except ValueError as exc:  # TOMLDecodeError, JSONDecodeError, an integer beyond Python's digit limit
         raise TrackformError(f"{path}: cannot parse trackform file ({exc})") from exc
     except RecursionError:
