@@ -14,8 +14,16 @@ x, y, z    yes      sensor position [m]
 dx, dy, dz yes      unit measuring direction (normalised if within 1e-3 of 1)
 fe_node    no       FE node the sensor is rigidly attached to
 sensitivity no      sensor sensitivity, informational (data are in SI units)
-setup      no       name of the test setup (``flexural``, ``torsional``, ...)
+setup      no       name of the test setup (``flexural``, ``torsional``, ...);
+                    one value for the whole table (a hammer test is one setup)
 ========== ======== ==============================================================
+
+Descriptive columns (:data:`DESCRIPTIVE_COLUMNS`: ``comment``, ``description``,
+``serial``, ...) are kept as they are. Any other column is kept with a
+WARNING, except one that looks like a misspelt or repeated known column
+(``fe-node``, ``FE_node``, ``sensitivty``, ``z.1``): that is refused, because
+the table would otherwise be read as if the column were absent (sensors fall
+back to the nearest FE node, say) without anyone noticing.
 
 The validation is modelled on MNE-Python's ``Info``: a bad table raises
 :class:`ChannelTableError` whose message names the file, the row (node) and
@@ -24,8 +32,10 @@ the column, what was found, what is allowed, and what to do about it.
 
 from __future__ import annotations
 
+import difflib
 import logging
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -35,6 +45,7 @@ __all__ = [
     "ChannelTableError",
     "REQUIRED_COLUMNS",
     "OPTIONAL_COLUMNS",
+    "DESCRIPTIVE_COLUMNS",
     "CHANNEL_QUANTITIES",
     "UNIT_TO_SI",
     "validate_channels",
@@ -49,6 +60,9 @@ log = logging.getLogger("ema")
 REQUIRED_COLUMNS: tuple[str, ...] = ("node", "name", "quantity", "unit", "x", "y", "z", "dx", "dy", "dz")
 #: Columns a channel table may have.
 OPTIONAL_COLUMNS: tuple[str, ...] = ("fe_node", "sensitivity", "setup")
+#: Free-text columns a lab may add for people (kept, never read, no warning).
+DESCRIPTIVE_COLUMNS: tuple[str, ...] = ("comment", "comments", "description", "note", "notes", "label", "serial",
+                                        "serial_number", "sensor_type", "sensor_model", "manufacturer", "location")
 #: quantity -> accepted unit spellings (the first is the canonical SI unit).
 CHANNEL_QUANTITIES: dict[str, tuple[str, ...]] = {
     "force": ("N",),
@@ -85,7 +99,71 @@ def _row_label(df: pd.DataFrame, i: int) -> str:
         return f"row {i + 1}"
 
 
-def validate_channels(df: pd.DataFrame, *, source: str = "") -> pd.DataFrame:
+def _norm_column(name: str) -> str:
+    """A column name without case, blanks and punctuation differences ('FE-node ' -> 'fe_node')."""
+    return re.sub(r"[^0-9a-z]+", "_", name.strip().lower()).strip("_")
+
+
+def _rows_text(rows: list[int], limit: int = 8) -> str:
+    """'rows 1-3, 7' for 0-based row positions (1-based in the text, runs collapsed, at most ``limit`` runs)."""
+    runs: list[list[int]] = []
+    for r in sorted(rows):
+        if runs and r == runs[-1][1] + 1:
+            runs[-1][1] = r
+        else:
+            runs.append([r, r])
+    parts = [f"{a + 1}" if a == b else f"{a + 1}-{b + 1}" for a, b in runs]
+    more = f", ... ({len(parts) - limit} more)" if len(parts) > limit else ""
+    return ("row " if len(rows) == 1 else "rows ") + ", ".join(parts[:limit]) + more
+
+
+def _check_columns(df: pd.DataFrame, where: str, warn_extra: bool) -> None:
+    """Refuse repeated and misspelt known columns; WARN about other unknown ones.
+
+    A misspelt known column (``fe-node``) or a repeated one (``z`` twice, which pandas renames ``z.1``) is kept
+    by pandas as an extra column while the known column is missing or holds the first copy: the table would
+    be read as if the column were not there, so results would change without a message. Other unknown
+    columns change nothing but may be a typo nobody meant, so they are named once.
+    """
+    known = REQUIRED_COLUMNS + OPTIONAL_COLUMNS
+    hint = f"channel-table columns are {list(REQUIRED_COLUMNS)} (optional {list(OPTIONAL_COLUMNS)})"
+    names = [str(c) for c in df.columns]
+    seen: dict[str, int] = {}
+    for k, c in enumerate(names):
+        if c in seen:
+            raise ChannelTableError(
+                f"{where}: column {c!r} appears twice (columns {seen[c] + 1} and {k + 1}); only one copy could be "
+                f"used, so the table is ambiguous: remove the repeated column"
+            )
+        seen[c] = k
+    extra = []
+    for c in names:
+        if c in known:
+            continue
+        m = re.fullmatch(r"(.+)\.(\d+)", c)
+        if m and m.group(1) in names:
+            # pandas.read_csv renames a repeated header 'z' to 'z.1'
+            raise ChannelTableError(
+                f"{where}: column {c!r} looks like a second {m.group(1)!r} column (pandas renames a repeated "
+                f"header {m.group(1)!r} to {c!r}); only the first copy would be used: remove the repeated column"
+            )
+        norm = _norm_column(c)
+        if norm in DESCRIPTIVE_COLUMNS:
+            continue
+        target = norm if norm in known else next(iter(difflib.get_close_matches(norm, known, n=1, cutoff=0.8)), None)
+        if target is not None:
+            what = (f"repeats column {target!r} (the same name up to case, blanks or punctuation): only one copy "
+                    f"would be used" if target in names else
+                    f"is not a channel-table column; did you mean {target!r}? As it is, the table would be read as "
+                    f"if {target!r} were absent")
+            raise ChannelTableError(f"{where}: column {c!r} {what}; rename or remove it. The {hint}")
+        extra.append(c)
+    if extra and warn_extra:
+        log.warning("%s: unknown column(s) %s are kept but not used; the %s, and descriptive columns %s are "
+                    "kept without notice", where, extra, hint, list(DESCRIPTIVE_COLUMNS))
+
+
+def validate_channels(df: pd.DataFrame, *, source: str = "", warn_extra: bool = True) -> pd.DataFrame:
     """Check a channel table and return a validated, normalised copy.
 
     Parameters
@@ -94,6 +172,10 @@ def validate_channels(df: pd.DataFrame, *, source: str = "") -> pd.DataFrame:
         The table (see the module docstring for the schema). Not modified.
     source : str, optional
         Where the table comes from (a file name), quoted in error messages.
+    warn_extra : bool, optional
+        Log a WARNING (logger ``"ema"``) naming unknown columns that are
+        neither known nor descriptive. Callers re-validating a table that was
+        already checked pass False, so the warning is given once.
 
     Returns
     -------
@@ -112,12 +194,16 @@ def validate_channels(df: pd.DataFrame, *, source: str = "") -> pd.DataFrame:
         finite; a quantity or unit is not allowed; there is not exactly one
         force row; a node or name is repeated; a direction is not a unit
         vector (within 1e-3); ``fe_node`` is not a positive integer or
-        ``sensitivity`` not a positive number. The message names the source,
-        the row and node, and the column.
+        ``sensitivity`` not a positive number; a column is repeated or a
+        misspelt known column (``fe-node``); the ``setup`` column names more
+        than one setup. The message names the source, the row and node, and
+        the column.
     """
     where = _where(source)
     if not isinstance(df, pd.DataFrame):
         raise ChannelTableError(f"{where}: expected a pandas.DataFrame, got {type(df).__name__}")
+    # before the missing-column check, so that 'Node' or 'fe-node' is named as the misspelling it is
+    _check_columns(df, where, warn_extra)
     missing = [c for c in REQUIRED_COLUMNS if c not in df.columns]
     if missing:
         raise ChannelTableError(
@@ -181,6 +267,19 @@ def validate_channels(df: pd.DataFrame, *, source: str = "") -> pd.DataFrame:
         )
     if n_force == len(out):
         raise ChannelTableError(f"{where}: the table has a force row but no acceleration channel")
+
+    # -- one setup per table: the setup names the modes identified from this test, and the CLI and
+    # ema.identify take the table's single value; a mixed column would be reduced to its first value
+    if "setup" in out.columns:
+        groups: dict[str, list[int]] = {}
+        for i, v in enumerate(out["setup"]):
+            groups.setdefault(v, []).append(i)
+        if len(groups) > 1:
+            listed = "; ".join(f"{v!r} in {_rows_text(r)}" for v, r in groups.items())
+            raise ChannelTableError(
+                f"{where}: column 'setup' must have one value for the whole table (a hammer test is one setup), "
+                f"found {len(groups)}: {listed}; split the table (and the hammer-test file) per setup"
+            )
 
     # -- uniqueness
     for col in ("node", "name"):
@@ -250,6 +349,8 @@ def read_channels(csv_path: str | os.PathLike) -> pd.DataFrame:
     -----
     The separator (``,``, ``;``, tab or ``|``) and a decimal comma are
     detected (:func:`read_table_csv`); a UTF-8 byte-order mark is accepted.
+    A repeated header is refused; unknown columns are handled as described
+    in :mod:`ema.channels`.
     """
     path = Path(os.fspath(csv_path))
     df = read_table_csv(path, role="channel table", required=REQUIRED_COLUMNS, error=ChannelTableError)
@@ -288,11 +389,12 @@ def read_table_csv(path: str | os.PathLike, *, role: str, required, error=ValueE
     FileNotFoundError
         No such file.
     error
-        A folder instead of a file, not text, or rows that do not match the
-        header (e.g. decimal commas in a comma-separated file).
+        A folder instead of a file, not text, rows that do not match the
+        header (e.g. decimal commas in a comma-separated file), or a column
+        name that appears twice in the header.
     """
+    import csv
     import io
-    import re
 
     path = Path(os.fspath(path))
     if path.is_dir():
@@ -312,6 +414,16 @@ def read_table_csv(path: str | os.PathLike, *, role: str, required, error=ValueE
     want = set(required)
     scores = {sep: len(want & {c.strip() for c in header.split(sep)}) for sep in _SEPARATORS}
     sep = max(_SEPARATORS, key=lambda s: (scores[s], s == ","))
+    # pandas renames a repeated header 'z' to 'z.1' and every reader then uses the first copy only: which
+    # of the two was meant cannot be known, so the file is refused (read the header row itself to see it)
+    cols = [c.strip() for c in next(csv.reader([header], delimiter=sep, skipinitialspace=True), [])]
+    first: dict[str, int] = {}
+    for k, c in enumerate(cols):
+        if c and c in first:
+            raise error(f"{role} {str(path)!r}: column {c!r} appears twice in the header (columns {first[c] + 1} "
+                        f"and {k + 1}); only one copy could be used, so the table is ambiguous: remove the repeated "
+                        f"column")
+        first.setdefault(c, k)
     body = "\n".join(lines[1:])
     decimal = "."
     if sep != "," and re.search(r"(^|[^\d.])[-+]?\d+,\d+([eE][-+]?\d+)?($|[^\d])", body, re.M):

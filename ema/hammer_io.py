@@ -6,7 +6,9 @@ exports them as UFF58 time histories (function type 1, one dataset per
 channel per hit, the hit number in the record-6 "version / sequence number"
 field, pyuff key ``ver_num``; files whose sequence number is the same in
 every dataset are numbered by load case or by order, see :func:`_hit_numbers`;
-data labelled in g, mm/s², kN or lbf are converted to SI, see :func:`_si_factor`)
+data labelled in g, mm/s², kN or lbf are converted to SI, see :func:`_si_factor`;
+a units dataset 164 that is not SI must agree with those labels, see
+:func:`_check_unit_system`; other dataset types are skipped with an INFO log)
 and describes the channels in a separate table
 (:mod:`ema.channels`): the measuring directions, positions and FE nodes are
 taken from that table, the samples and the sampling from the file.
@@ -19,6 +21,12 @@ through :meth:`HammerTest.from_arrays`; both paths end in the same validated
 
 Every problem with the data raises a subclass of :class:`HammerDataError`
 whose message names the file, the channel (node and name) and the hit.
+
+The reference (excitation) node of the datasets (pyuff ``ref_node``; 0 =
+not set, as many writers leave it) is checked: a single-reference test is
+averaged over hits at one point, so hits that name different reference nodes
+raise :class:`ReferenceNodeError`; one reference node for every hit that is
+not the channel table's force node is logged as a WARNING (the table is used).
 """
 
 from __future__ import annotations
@@ -47,6 +55,8 @@ __all__ = [
     "UnknownFormatError",
     "FunctionTypeError",
     "ChannelMismatchError",
+    "ReferenceNodeError",
+    "UnitSystemError",
     "SamplingError",
     "NonFiniteDataError",
     "ZeroForceError",
@@ -77,6 +87,14 @@ class FunctionTypeError(HammerDataError):
 
 class ChannelMismatchError(HammerDataError):
     """File and channel table disagree: a table row without data, data without a row, a duplicate dataset."""
+
+
+class ReferenceNodeError(ChannelMismatchError):
+    """Hits recorded at different reference (excitation) nodes: they cannot be averaged into one FRF."""
+
+
+class UnitSystemError(HammerDataError):
+    """A units dataset 164 that is not SI and that the channels' unit labels do not confirm."""
 
 
 class SamplingError(HammerDataError):
@@ -157,7 +175,9 @@ class HammerTest:
 
     def __post_init__(self) -> None:
         src = self.source or "hammer test"
-        channels = validate_channels(self.channels, source=self.source)
+        # readers and from_arrays have validated (and reported on) the table already; this guards direct
+        # construction without repeating the unknown-column warning on every derived test
+        channels = validate_channels(self.channels, source=self.source, warn_extra=False)
         fs = float(self.fs)
         if not np.isfinite(fs) or fs <= 0:
             raise SamplingError(f"{src}: sampling rate fs must be finite and > 0 Hz, got {self.fs!r}")
@@ -302,6 +322,7 @@ class HammerTest:
         if not np.isfinite(fs) or fs <= 0:
             raise SamplingError(f"{source or 'arrays'}: sampling rate fs must be finite and > 0 Hz, got {fs!r}")
         time = _time_axis(float(t0), fs, n)
+        channels = validate_channels(channels, source=source)  # here, once, with the unknown-column warning
         return cls(fs=fs, time=time, channels=channels, force=f, responses=r, hits=hits,
                    source=source, history=("from_arrays",))
 
@@ -407,14 +428,45 @@ def _scan_uff(raw: bytes, path: str) -> list[tuple[int, bool, int, int]]:
 # --------------------------------------------------------------------------
 # pyuff access
 # --------------------------------------------------------------------------
+#: Names of dataset types for messages.
+_DATASET_NAMES = {15: "nodes", 18: "coordinate systems", 55: "data at nodes", 58: "function at a DOF",
+                  82: "trace lines", 151: "header", 164: "units", 1858: "dataset-58 qualifiers", 2411: "nodes",
+                  2412: "elements", 2414: "analysis data", 2420: "coordinate systems"}
+
+
+def _is_si(u: dict) -> bool:
+    """Whether a units dataset 164 is SI: its conversion factors (file unit per SI unit) are 1."""
+    return bool(np.isclose(float(u["length"]), 1.0, rtol=1e-6) and np.isclose(float(u["force"]), 1.0, rtol=1e-6))
+
+
+def _units_label(u: dict) -> str:
+    return (f"dataset {u['_index']} (type 164) declares units code {int(u['units_code'])} "
+            f"{str(u.get('units_description', '')).strip()!r} (length unit {1 / float(u['length']):.6g} m, force unit "
+            f"{1 / float(u['force']):.6g} N)")
+
+
 def _read_uff_sets(path: Path, wanted_type: int = 58) -> list[dict]:
     """Framing check, then every dataset of ``wanted_type`` read by pyuff (as dicts, file order).
 
     Each dict gets an extra key ``'_index'``: its 1-based dataset number in the file.
     Fortran ``D`` exponents in ASCII datasets are read; an overflow field
     (``*****``) raises :class:`UFFReadError` naming the dataset, record and line
-    (:mod:`fem_import.uff_text`).
+    (:mod:`fem_import.uff_text`). Other dataset types are skipped with an INFO
+    log; a units dataset 164 that is not SI is not applied by this generic
+    path, so it is named in a WARNING (the hammer reader uses
+    :func:`_read_uff_file` and checks it against the unit labels,
+    :func:`_check_unit_system`).
     """
+    sets, units = _read_uff_file(path, wanted_type)
+    for u in units:
+        if not _is_si(u):
+            log.warning("%s: %s; this reader does not apply a unit system: the data are taken in the units their "
+                        "labels name (SI if unlabelled); check the unit labels", path, _units_label(u))
+    return sets
+
+
+def _read_uff_file(path: Path, wanted_type: int = 58) -> tuple[list[dict], list[dict]]:
+    """Like :func:`_read_uff_sets`, plus the units datasets 164 (``(sets, units)``, each with ``'_index'``)."""
     p = str(path)
     try:
         raw = path.read_bytes()
@@ -431,7 +483,9 @@ def _read_uff_sets(path: Path, wanted_type: int = 58) -> list[dict]:
         return _read_pyuff_sets(p, readable, framing, wanted_type, lambda i: unreadable_field(raw, spans[i]))
 
 
-def _read_pyuff_sets(p: str, readable: str, framing, wanted_type: int, explain=lambda i: None) -> list[dict]:
+def _read_pyuff_sets(p: str, readable: str, framing, wanted_type: int,
+                     explain=lambda i: None) -> tuple[list[dict], list[dict]]:
+    """The datasets of ``wanted_type`` and the units datasets 164, read by pyuff; other types are logged (INFO)."""
     import pyuff  # third-party reader, imported where needed
 
     try:
@@ -444,25 +498,45 @@ def _read_pyuff_sets(p: str, readable: str, framing, wanted_type: int, explain=l
             f"{p}: the dataset framing is inconsistent ({len(framing)} datasets by their '    -1' tags and "
             f"headers, {len(types)} as indexed by pyuff); the file is corrupt"
         )
-    idx = [i for i, t in enumerate(types) if t == wanted_type]
-    if not idx:
+    if wanted_type not in types:
         raise UFFReadError(
             f"{p}: no dataset of type {wanted_type} in the file (dataset types found: {sorted(set(types))})"
         )
-    out = []
-    for i in idx:
+    # what is skipped is said (with counts), so a file holding more than the reader uses is not a surprise
+    skipped: dict[int, int] = {}
+    for t in types:
+        if t not in (wanted_type, 164):
+            skipped[t] = skipped.get(t, 0) + 1
+    if skipped:
+        log.info("%s: ignored %s; this reader uses datasets %d", p,
+                 ", ".join(f"{n} dataset{'s' if n > 1 else ''} of type {t}"
+                           + (f" ({_DATASET_NAMES[t]})" if t in _DATASET_NAMES else "")
+                           for t, n in sorted(skipped.items())), wanted_type)
+    out, units = [], []
+    for i, t in enumerate(types):
+        if t not in (wanted_type, 164):
+            continue
         try:
             d = uff.read_sets(i)
         except Exception as exc:  # pyuff raises bare Exception; re-raise naming the file, dataset and cause
             bad = explain(i)
             if bad is not None:
                 raise UFFReadError(f"{p}: {bad}") from exc
-            raise UFFReadError(f"{p}: dataset {i + 1} (type {wanted_type}) cannot be read ({exc})") from exc
+            raise UFFReadError(f"{p}: dataset {i + 1} (type {t}) cannot be read ({exc})") from exc
+        if t == 164:
+            if not isinstance(d, dict) or not all(isinstance(d.get(k), (int, float, np.number)) and
+                                                  np.isfinite(d.get(k)) and (k == "units_code" or d.get(k) > 0)
+                                                  for k in ("units_code", "length", "force")):
+                raise UFFReadError(f"{p}: dataset {i + 1} (type 164, units) has no usable units code and positive "
+                                   f"conversion factors (length, force); the file is corrupt")
+            d["_index"] = i + 1
+            units.append(d)
+            continue
         if not isinstance(d, dict) or "data" not in d:
             raise UFFReadError(f"{p}: dataset {i + 1} (type {wanted_type}) cannot be read")
         d["_index"] = i + 1
         out.append(d)
-    return out
+    return out, units
 
 
 def _dset_label(d: dict) -> str:
@@ -505,6 +579,112 @@ def _si_factor(p: str, row, dsets: list[dict]) -> tuple[float, str]:
     return factor, lab
 
 
+def _label_agrees(quantity: str, label: str, u: dict) -> bool | None:
+    """Whether a channel's unit label names the unit the units dataset ``u`` implies; None if unlabelled/unknown.
+
+    ``g`` is not a unit of any system, so it agrees with every one.
+    """
+    key = label.lower().replace(" ", "")
+    factor = UNIT_TO_SI[quantity].get(key)
+    if key in ("", "none") or factor is None:
+        return None
+    if quantity == "acceleration" and key == "g":
+        return True
+    # 164 factors are file units per SI unit: the file's length unit is 1/length m, its force unit 1/force N
+    system = 1.0 / float(u["length"] if quantity == "acceleration" else u["force"])
+    return bool(np.isclose(factor, system, rtol=1e-3))
+
+
+def _check_unit_system(p: str, units: list[dict], by_key: dict, nodes: dict) -> None:
+    """Check the datasets 58 against a units dataset 164 that is not SI.
+
+    A 164 governs the datasets after it (to the next 164). This reader converts by the datasets' unit labels
+    (:func:`_si_factor`), not by a unit system. If a 164 says inch/lbf and a label says ``N`` (or there is no
+    label, so the data would be taken as SI), one of the two is wrong and the results would be off by the
+    unit ratio without a message; so that is refused. Labels that name the declared system's units (``lbf``)
+    or ``g`` agree: the data are converted by the labels, logged at INFO.
+    """
+    if not units or all(_is_si(u) for u in units):
+        return
+    starts = [u["_index"] for u in units]
+    agreed: set[str] = set()
+    for (hit, node), d in sorted(by_key.items(), key=lambda kv: kv[1]["_index"]):
+        k = int(np.searchsorted(starts, d["_index"])) - 1
+        if k < 0 or _is_si(units[k]):
+            continue
+        u, row = units[k], nodes[node]
+        label = str(d.get("ordinate_axis_units_lab", "") or "").strip()
+        ok = _label_agrees(row.quantity, label, u)
+        if ok:
+            agreed.add(f"{row.quantity} in {label}")
+            continue
+        why = (f"is labelled {label!r}, which is not the declared system's {row.quantity} unit" if ok is False else
+               (f"has the unit label {label!r}, which the reader does not know" if label and label.upper() != "NONE"
+                else "has no unit label") + ", so its data would be taken in SI units, not in the declared system's")
+        raise UnitSystemError(
+            f"{p}: {_units_label(u)}, but hit {hit}, channel {row.name!r} (node {node}, dataset {d['_index']}) {why}; "
+            f"the unit system and the channel's unit cannot both be right. Export the hammer test in SI units (164 "
+            f"code 1), or with unit labels in the declared units (g, lbf), or remove the 164 if the labels are right"
+        )
+    if agreed:
+        log.info("%s: %s; every channel's unit label agrees (%s): converted by the labels", p,
+                 "; ".join(_units_label(u) for u in units if not _is_si(u)), ", ".join(sorted(agreed)))
+
+
+def _ref_node(d: dict) -> int:
+    return int(d.get("ref_node") or 0)
+
+
+def _check_reference_nodes(p: str, by_key: dict, nodes: dict, fnode: int) -> None:
+    """Compare the datasets' reference nodes with each other and with the table's force node.
+
+    A single-reference FRF is an H1 average over hits at one excitation point; a hit at another point averaged
+    in would corrupt it without a trace, so hits (or the datasets of one hit) naming different reference nodes
+    are refused. 0 means "not set" (many writers leave it) and an acceleration channel naming its own node is a
+    self-reference, not an excitation point: both are not compared. One reference node for all hits that is
+    not the table's force node may be a point-numbering difference: WARNING, the table is used.
+    """
+    refs: dict[int, dict[int, list[int]]] = {}
+    for (hit, node), d in by_key.items():
+        r = _ref_node(d)
+        if r == 0 or (r == node and node != fnode):
+            continue
+        refs.setdefault(hit, {}).setdefault(r, []).append(node)
+
+    def chans(ns: list[int]) -> str:
+        names = [f"{nodes[n].name!r} (node {n})" for n in sorted(ns)]
+        return ", ".join(names[:4]) + (f" and {len(names) - 4} more" if len(names) > 4 else "")
+
+    for hit in sorted(refs):
+        if len(refs[hit]) > 1:
+            listed = "; ".join(f"node {r} in {chans(ns)}" for r, ns in sorted(refs[hit].items()))
+            raise ReferenceNodeError(
+                f"{p}: hit {hit}: its datasets name different reference (excitation) nodes: {listed}; the channels "
+                f"of one hit share one excitation point: fix the export or remove hit {hit}"
+            )
+    by_ref: dict[int, list[int]] = {}
+    for hit, rs in refs.items():
+        by_ref.setdefault(next(iter(rs)), []).append(hit)
+    if len(by_ref) > 1:
+        # name the hits away from the table's force node (or, if none is at it, every group)
+        odd = {r: hs for r, hs in by_ref.items() if r != fnode} if fnode in by_ref else by_ref
+        listed = "; ".join(f"hit{'s' if len(hs) > 1 else ''} {', '.join(map(str, sorted(hs)))} at node {r}"
+                           for r, hs in sorted(by_ref.items()))
+        first = min(h for hs in odd.values() for h in hs)
+        raise ReferenceNodeError(
+            f"{p}: the hits name different reference (excitation) nodes: {listed} (the channel table's force node is "
+            f"{fnode}); hits at different points cannot be averaged into one FRF (hit {first} would be averaged in "
+            f"as if hit at node {fnode}): remove the hits at the other point(s) or read each point as its own test"
+        )
+    if by_ref:
+        (r, hs), = by_ref.items()
+        if r != fnode:
+            log.warning("%s: hit%s %s name%s reference (excitation) node %d, but the channel table's force channel "
+                        "%r is node %d; the table is used: check that it describes the point the hammer hit", p,
+                        "s" if len(hs) > 1 else "", ", ".join(map(str, sorted(hs))), "" if len(hs) > 1 else "s", r,
+                        nodes[fnode].name, fnode)
+
+
 def _hit_numbers(dsets: list[dict], p: str) -> list[int]:
     """The hit of each dataset: its sequence number (``ver_num``), as the lab writes it.
 
@@ -540,10 +720,11 @@ def _hit_numbers(dsets: list[dict], p: str) -> list[int]:
 def _read_uff58(path: Path, channels: pd.DataFrame) -> HammerTest:
     p = str(path)
     log.info("reading hammer test %s (%.1f MB)", p, path.stat().st_size / 1e6)
-    dsets = _read_uff_sets(path, 58)
+    dsets, units = _read_uff_file(path, 58)
     for d in dsets:
-        _check_dset_fields(d, p, ("func_type", "ver_num", "rsp_node", "rsp_dir", "num_pts", "abscissa_spacing",
-                                  "abscissa_min", "abscissa_inc", "ord_data_type", "ordinate_spec_data_type"))
+        _check_dset_fields(d, p, ("func_type", "ver_num", "rsp_node", "rsp_dir", "ref_node", "num_pts",
+                                  "abscissa_spacing", "abscissa_min", "abscissa_inc", "ord_data_type",
+                                  "ordinate_spec_data_type"))
     bad_func = [d for d in dsets if int(d["func_type"]) != 1]
     if bad_func:
         d = bad_func[0]
@@ -610,6 +791,8 @@ def _read_uff58(path: Path, channels: pd.DataFrame) -> HammerTest:
                     f"{p}: hit {hit}: channel {row.name!r} (node {node}, {row.quantity}) is in the channel table "
                     f"but has no dataset in this hit; fix the table or drop the hit"
                 )
+    _check_reference_nodes(p, by_key, nodes, int(channels.loc[channels["quantity"] == "force", "node"].iloc[0]))
+    _check_unit_system(p, units, by_key, nodes)
     ref = by_key[(hits[0], int(channels.loc[channels['quantity'] == 'force', 'node'].iloc[0]))]
     dt0, t00, n0 = float(ref["abscissa_inc"]), float(ref["abscissa_min"]), int(ref["num_pts"])
     if not dt0 > 0:
@@ -701,6 +884,12 @@ def read_hammer(uff_path: str | os.PathLike, channels_csv, *, format: str | None
     ChannelMismatchError
         A table row without data in some hit, data without a table row, a
         duplicate dataset for the same node and hit, or a quantity mismatch.
+    ReferenceNodeError
+        Hits (or the datasets of one hit) name different non-zero reference
+        nodes: they were excited at different points.
+    UnitSystemError
+        A units dataset 164 that is not SI contradicts a channel's unit label,
+        or a channel has no (known) unit label under it.
     SamplingError
         Mixed sampling intervals, record lengths or start times.
     NonFiniteDataError, ZeroForceError
