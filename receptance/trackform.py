@@ -35,7 +35,7 @@ from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 
 __all__ = ["Trackform", "TrackformError", "TrackformWarning", "load_trackform", "trackform_to_dict", "check_trackform",
-           "PLAUSIBLE"]
+           "PLAUSIBLE", "DuplicateJSONKey", "unique_json_keys"]
 
 #: Largest trackform file read (a trackform is ~21 numbers).
 MAX_FILE_BYTES = 1_000_000
@@ -243,34 +243,34 @@ def trackform_to_dict(trackform: Trackform) -> dict[str, float]:
     return {k: v for k, v in asdict(trackform).items() if not (k in OPTIONAL and v is None)}
 
 
-class _DuplicateKey(Exception):
-    """A JSON object names a key twice (raised by :func:`_unique_keys`, reported as :class:`TrackformError`).
+class DuplicateJSONKey(Exception):
+    """A JSON object names a key twice (raised by :func:`unique_json_keys`; each reader reports it with its file).
 
     Not a ``ValueError``: it must not be taken for a JSON syntax error, whose
-    message would not name the key.
+    message would not name the key. ``keys``: the object's keys, for messages.
     """
 
-    def __init__(self, key: str):
+    def __init__(self, key: str, keys: list[str]):
         super().__init__(key)
-        self.key = key
+        self.key, self.keys = key, ", ".join(keys[:12]) + (", ..." if len(keys) > 12 else "")
 
 
-def _unique_keys(pairs: list[tuple[str, object]]) -> dict:
+def unique_json_keys(pairs: list[tuple[str, object]]) -> dict:
     """``object_pairs_hook`` for :func:`json.loads` that refuses a repeated key.
 
-    Plain ``json.loads`` keeps the last of two equal keys, so a trackform
-    edited by appending a line would silently take the appended value (TOML
-    refuses a repeated key; JSON must not be more lenient).
+    Plain ``json.loads`` keeps the last of two equal keys, so a file edited by
+    appending a line would silently take the appended value (TOML refuses a
+    repeated key; JSON must not be more lenient).
 
     Raises
     ------
-    _DuplicateKey
+    DuplicateJSONKey
         Naming the first key given twice.
     """
     out: dict = {}
     for key, value in pairs:
         if key in out:
-            raise _DuplicateKey(key)
+            raise DuplicateJSONKey(key, [k for k, _ in pairs])
         out[key] = value
     return out
 
@@ -318,8 +318,8 @@ def load_trackform(path: str | Path) -> Trackform:
     except UnicodeDecodeError as exc:
         raise TrackformError(f"{path}: not UTF-8 text (byte {exc.start}); save the trackform as UTF-8") from None
     try:
-        raw = tomllib.loads(decoded) if suffix == ".toml" else json.loads(decoded, object_pairs_hook=_unique_keys)
-    except _DuplicateKey as exc:
+        raw = tomllib.loads(decoded) if suffix == ".toml" else json.loads(decoded, object_pairs_hook=unique_json_keys)
+    except DuplicateJSONKey as exc:
         raise TrackformError(f"{path}: key {exc.key!r} given twice; a key may appear once (which value is meant?)") \
             from None
     except ValueError as exc:  # TOMLDecodeError, JSONDecodeError, an integer beyond Python's digit limit

@@ -541,13 +541,18 @@ def test_a_header_that_cannot_be_read_or_gives_a_key_twice_and_rows_without_a_ch
     ch = _channels()
     p = tmp_path / "badxml.mf4"
     write_mdf4(p, ch, {**HEADER, "train": "T12 & T13"})
+    from estimator.monitoring.headers import read_header  # what a batch reads first: the same refusals
+
     with pytest.raises(RunFileError, match=r"badxml.mf4: the header comment is not valid XML .*cannot be read"):
         read_run(p, table)
+    with pytest.raises(RunFileError, match=r"badxml.mf4: the header comment is not valid XML .*cannot be read"):
+        read_header(p)
     p = _write(tmp_path, "twice", ch, "csv")
     p.write_text("# direction = backward\n" + p.read_text())
-    with pytest.raises(RunFileError, match=r"twice.csv: header key 'direction' is given twice \('backward', then "
-                                           r"'forward'\)"):
-        read_run(p, table)
+    for read in (lambda q: read_run(q, table), read_header):
+        with pytest.raises(RunFileError, match=r"twice.csv: header key 'direction' is given twice \('backward', "
+                                               r"then 'forward'\)"):
+            read(p)
     p = _write(tmp_path, "blank", ch, "csv")
     lines = p.read_text().splitlines()
     first = next(i for i, ln in enumerate(lines) if ln.startswith("ACC_W1L_Z,"))

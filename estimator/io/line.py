@@ -33,7 +33,7 @@ import numpy as np
 import pandas as pd
 
 from estimator.errors import RunFileError
-from receptance.trackform import PLAUSIBLE, Trackform, TrackformError
+from receptance.trackform import PLAUSIBLE, DuplicateJSONKey, Trackform, TrackformError, unique_json_keys
 
 __all__ = ["Curve", "TrackSection", "LineDescription", "read_line", "read_trolley", "MAX_LINE_BYTES"]
 
@@ -152,28 +152,6 @@ _TRACKFORM_FIELD_ORDER = tuple(f.name for f in fields(Trackform))
 #: Sleeper spacings a line may state [m]: the physical range of a Trackform's support spacing, so that a spacing
 #: in mm (600) or a sign slip is refused rather than combing the spectra at a wavelength that is not there.
 _SLEEPER_SPACING_RANGE_M = PLAUSIBLE["support_spacing"]["physical"]
-
-
-class _RepeatedKey(Exception):
-    """A JSON object names a key twice (raised by :func:`_unique_keys`, reported as a RunFileError).
-
-    Not a ``ValueError``, so that it is not taken for a JSON syntax error.
-    """
-
-    def __init__(self, key: str, keys: list[str]):
-        super().__init__(key)
-        self.key, self.keys = key, ", ".join(keys[:12]) + (", ..." if len(keys) > 12 else "")
-
-
-def _unique_keys(pairs: list[tuple[str, object]]) -> dict:
-    """``object_pairs_hook`` refusing a repeated key, which plain ``json.loads`` would silently overwrite (a
-    second ``"curves"`` list appended to a file would hide the first)."""
-    out: dict = {}
-    for key, value in pairs:
-        if key in out:
-            raise _RepeatedKey(key, [k for k, _ in pairs])
-        out[key] = value
-    return out
 
 
 def _json_kind(v) -> str:
@@ -449,8 +427,8 @@ def read_line(path) -> LineDescription:
     if p.stat().st_size > MAX_LINE_BYTES:
         raise RunFileError(f"{p}: {p.stat().st_size} bytes; a line description is at most {MAX_LINE_BYTES}")
     try:
-        d = json.loads(p.read_text(encoding="utf-8-sig"), object_pairs_hook=_unique_keys)
-    except _RepeatedKey as exc:
+        d = json.loads(p.read_text(encoding="utf-8-sig"), object_pairs_hook=unique_json_keys)
+    except DuplicateJSONKey as exc:
         raise RunFileError(f"{p}: key {exc.key!r} is given twice in one object ({exc.keys}); plain JSON keeps "
                            "the last one, so give each key once") from None
     except (ValueError, UnicodeDecodeError) as exc:

@@ -20,7 +20,7 @@ import numpy as np
 from estimator.errors import RunFileError
 from estimator.io.registry import RawChannel, RawRecording
 
-__all__ = ["sniff", "read_raw", "header_properties"]
+__all__ = ["sniff", "read_raw", "header_properties", "run_header"]
 
 log = logging.getLogger("estimator")
 
@@ -60,6 +60,15 @@ def header_properties(comment: str) -> dict[str, str]:
                 raise ValueError(f"the header comment is not valid XML ({exc})") from None
             return header_properties(text.strip())
     return out
+
+
+def run_header(mdf, path) -> dict[str, str]:
+    """The run header of an open MDF 4 file (:func:`header_properties`); RunFileError naming ``path`` when the
+    comment cannot be read."""
+    try:
+        return header_properties(mdf.header.comment or "")
+    except ValueError as exc:
+        raise RunFileError(f"{path}: {exc}; the run header (run_id, date, direction, ...) cannot be read") from None
 
 
 def _quiet_half_built_mdf(hook):
@@ -130,10 +139,7 @@ def read_raw(path: Path) -> RawRecording:
     try:
         if int(str(mdf.version).split(".")[0]) < 4:
             raise RunFileError(f"{path}: MDF version {mdf.version}; the field contract uses MDF 4")
-        try:
-            header = header_properties(mdf.header.comment or "")
-        except ValueError as exc:
-            raise RunFileError(f"{path}: {exc}; the run header (run_id, date, direction, ...) cannot be read") from None
+        header = run_header(mdf, path)
         channels: dict[str, RawChannel] = {}
         unusable: dict[str, str] = {}
         for name, where in mdf.channels_db.items():

@@ -23,7 +23,7 @@ import pandas as pd
 from estimator.errors import RunFileError
 from estimator.io.registry import RawChannel, RawRecording
 
-__all__ = ["sniff_parquet", "sniff_csv", "read_parquet", "read_csv", "write_run_table", "COLUMNS"]
+__all__ = ["sniff_parquet", "sniff_csv", "read_parquet", "read_csv", "read_csv_header", "write_run_table", "COLUMNS"]
 
 COLUMNS = ("channel", "t_s", "value", "unit")
 HEADER_KEY = b"run_header"
@@ -87,8 +87,12 @@ def read_parquet(path: Path) -> RawRecording:
     return _from_frame(table.to_pandas(), header, path)
 
 
-def read_csv(path: Path) -> RawRecording:
-    header = {}
+def read_csv_header(path: Path) -> tuple[dict[str, str], int]:
+    """The ``# key = value`` header lines of a CSV run table, and how many lines they take.
+
+    Raises RunFileError when a key is given twice with two values (which one holds cannot be told).
+    """
+    header: dict[str, str] = {}
     skip = 0
     with open(path, encoding="utf-8-sig") as fh:
         for line in fh:
@@ -102,6 +106,11 @@ def read_csv(path: Path) -> RawRecording:
                     raise RunFileError(f"{path}: header key {k!r} is given twice ({header[k]!r}, then {v!r}); "
                                        "which one holds cannot be told")
                 header[k] = v
+    return header, skip
+
+
+def read_csv(path: Path) -> RawRecording:
+    header, skip = read_csv_header(path)
     try:
         df = pd.read_csv(path, skiprows=skip, encoding="utf-8-sig", dtype={"channel": str, "unit": str})
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:

@@ -25,11 +25,11 @@ def read_header(path) -> dict[str, str]:
         raise FileNotFoundError(f"run file {p} does not exist")
     fmt = sniff_format(p)
     if fmt == "mdf4":
-        from estimator.io.mdf4 import header_properties, open_mdf
+        from estimator.io.mdf4 import open_mdf, run_header
 
         mdf = open_mdf(p)
         try:
-            header = header_properties(mdf.header.comment or "")
+            header = run_header(mdf, p)
         finally:
             mdf.close()
     elif fmt == "parquet":
@@ -44,15 +44,9 @@ def read_header(path) -> dict[str, str]:
         except (ValueError, AttributeError):
             raise RunFileError(f"{p}: the run_header metadata is not a JSON object") from None
     elif fmt == "csv":
-        header = {}
-        with open(p, encoding="utf-8-sig") as fh:
-            for line in fh:
-                if not line.startswith("#"):
-                    break
-                body = line[1:].strip()
-                if "=" in body:
-                    k, v = body.split("=", 1)
-                    header[k.strip()] = v.strip()
+        from estimator.io.tabular import read_csv_header
+
+        header, _ = read_csv_header(p)
     else:  # a registered plugin without a header-only reader: read it whole
         from estimator.io.registry import read_raw
 
