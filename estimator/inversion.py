@@ -68,7 +68,8 @@ from scipy import fft as sfft
 
 from ema.frf import FrequencyResponse
 from estimator.errors import ChannelError, ConfigurationError
-from receptance.dofs import Point
+from receptance.dofs import DofError, Point
+from receptance.frame import check_railway_frame
 from receptance.transfer import full_vertical_transfer, half_wheelset_transfer, vertical_lateral_transfer
 
 __all__ = ["WheelsetTransfer", "sensor_model", "model_channels", "regularised_inverse", "tikhonov_inverse",
@@ -110,9 +111,10 @@ def sensor_model(model, channels: pd.DataFrame):
     axl, axr = pts["axlebox_L"], pts["axlebox_R"]
     if axl.xyz is None or axr.xyz is None:
         raise ChannelError("the model's axlebox points need coordinates (x, y, z) to place the accelerometers")
-    if axl.xyz[1] >= axr.xyz[1]:
-        raise ChannelError(f"the model's axlebox_L (y = {axl.xyz[1]:g} m) is not on the -y side of axlebox_R "
-                           f"(y = {axr.xyz[1]:g} m); the toolkit's frame has the left wheel at -y (DESIGN.md)")
+    try:  # the sensor table's x, y, z and the DOFs "...:z" are in the railway frame (DESIGN.md): so must the model be
+        check_railway_frame(pts, getattr(model, "fe", None), what="the wheelset model")
+    except DofError as exc:
+        raise ChannelError(str(exc)) from None
     centre = 0.5 * (np.asarray(axl.xyz) + np.asarray(axr.xyz))
     new, labels = [], []
     for _, r in channels.iterrows():

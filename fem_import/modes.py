@@ -110,6 +110,32 @@ class FEModes:
     def has_rotations(self) -> bool:
         return self.shapes.shape[2] == 6
 
+    def rotated(self, rotation, *, note: str = "") -> "FEModes":
+        """The same modes in another Cartesian frame: ``x' = Q x`` for the proper rotation ``Q``.
+
+        Node coordinates, modal translations and modal rotations (axial
+        vectors, which a proper rotation turns like translations) are all
+        turned by ``Q``; frequencies, modal masses and the mesh are unchanged.
+        The step is added to :attr:`history` (``note`` says why).
+
+        Raises
+        ------
+        FEGeometryError
+            ``rotation`` is not a 3 × 3 proper rotation (orthonormal, det +1).
+        """
+        q = np.asarray(rotation, float)
+        if q.shape != (3, 3) or not np.all(np.isfinite(q)) or not np.allclose(q @ q.T, np.eye(3), atol=1e-9) \
+                or np.linalg.det(q) < 0:
+            raise FEGeometryError(f"rotation must be a 3 x 3 proper rotation matrix (orthonormal, det +1), got "
+                                  f"{np.round(q, 6).tolist()}")
+        shapes = self.shapes.copy()
+        shapes[..., :3] = shapes[..., :3] @ q.T
+        if self.has_rotations:
+            shapes[..., 3:] = shapes[..., 3:] @ q.T
+        step = "rotated into another frame" + (f" ({note})" if note else "")
+        return FEModes(self.node_ids, self.xyz @ q.T, self.elements, self.freqs_hz, shapes, self.modal_mass,
+                       source=self.source, format=self.format, units=self.units, history=self.history + (step,))
+
     def index(self, node: int) -> int:
         """Row of ``node`` in ``node_ids``; ``KeyError`` naming the node otherwise."""
         hit = np.flatnonzero(self.node_ids == int(node))

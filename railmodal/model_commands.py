@@ -103,6 +103,7 @@ def _cmd_build(args: argparse.Namespace) -> int:
     from ema.channels import read_channels
     from fem_import.modes import shapes_at_channels
     from receptance.dofs import check_points, read_points
+    from receptance.frame import to_railway_frame
     from receptance.hybrid import check_fe_for_model, hybrid_model
     from receptance.model_io import save_model
     from receptance.modification import PrimarySuspension
@@ -128,12 +129,17 @@ def _cmd_build(args: argparse.Namespace) -> int:
     points = read_points(args.points)
     check_points(fe, points, source=str(args.points))
     tables = [read_channels(c) for c in channels]
+    # the model is built in the railway frame the points define, whatever the FE's frame (receptance.frame); the
+    # hammer files are read with their tables as written, and compared in that frame
+    frame, points, fe, rail_tables, _ = to_railway_frame(points, fe, tables=tables, source=str(args.points))
+    if not frame.is_identity:
+        step(frame.describe())
     free = hybrid_model(fe, args.pairing, points=points, keep_fe=args.keep_fe, default_zeta=args.default_zeta)
     if args.diagnosed is not None:  # the lab's diagnosed model: its wheelset properties, not its test artefacts
         from receptance.model_io import load_service_model
 
         free = load_service_model(args.diagnosed, fe=fe)
-    for table in tables:
+    for table in rail_tables:
         shapes_at_channels(free.fe, table)  # every sensor near its fe_node (named in the error)
     # ---- work
     model = free if args.free_free else free.with_modification(PrimarySuspension())
@@ -162,8 +168,8 @@ def _cmd_build(args: argparse.Namespace) -> int:
         written = [path, tmp / "modes.csv", tmp / "system_modes.csv", tmp / "receptances.png"]
         written += _transfer_plots(model, f, args, tmp, step)
         lines = []
-        for hammer, table in zip(hammers, tables):
-            paths, line = _validation(free, hammer, table, tmp, step)
+        for hammer, table, rail_table in zip(hammers, tables, rail_tables):
+            paths, line = _validation(free, hammer, table, rail_table, tmp, step)
             written += paths
             lines.append(line)
         written = [out / p.relative_to(tmp) for p in written]
@@ -215,7 +221,7 @@ def _transfer_plots(model, f, args, out: Path, step) -> list[Path]:
     return written
 
 
-def _validation(model, hammer, table, out: Path, step) -> tuple[list[Path], str]:
+def _validation(model, hammer, table, rail_table, out: Path, step) -> tuple[list[Path], str]:
     from ema import estimate_frf, read_hammer
     from receptance.compare import compare_frf
     from receptance.plot_model import plot_channel_errors, plot_comparison
@@ -224,7 +230,7 @@ def _validation(model, hammer, table, out: Path, step) -> tuple[list[Path], str]
     step(f"validating the free-free model against {hammer}")
     test = read_hammer(hammer, table)
     H = estimate_frf(test)
-    c = compare_frf(model, H, table)
+    c = compare_frf(model, H, rail_table)
     stem = Path(hammer).stem
     c.channels.to_csv(out / f"validation_{stem}.csv", index=False, float_format="%.6g")
     fig = plot_comparison(c)

@@ -27,6 +27,7 @@ from .diagnosis import (EFFECTS, Comparison, ComparisonError, Diagnosis, Diagnos
                         fit_effect, frf_errors, h1_variance, misfit, rank_effects, register_effect)
 from .contact import ContactParameters, HertzContact, hertz_compliance, hertz_contact, hertz_stiffness
 from .dofs import THESIS_DOFS, Dof, DofError, Point, dofs_from_channels, parse_dof, read_points, shifted_point
+from .frame import RailwayFrame, check_railway_frame, railway_frame, to_railway_frame
 from .hybrid import hybrid_model, read_pairing_table
 from .modal_model import ModalModel, ModelError
 from .model_io import ModelFileError, load_model, save_model
@@ -48,6 +49,7 @@ __all__ = [
     "DescriptionError", "WheelsetDescription", "read_description",
     "ContactParameters", "HertzContact", "hertz_compliance", "hertz_contact", "hertz_stiffness",
     "THESIS_DOFS", "Dof", "DofError", "Point", "dofs_from_channels", "parse_dof", "read_points", "shifted_point",
+    "RailwayFrame", "check_railway_frame", "railway_frame", "to_railway_frame",
     "hybrid_model", "read_pairing_table",
     "ModalModel", "ModelError",
     "ModelFileError", "load_model", "save_model",

@@ -28,7 +28,7 @@ import numpy as np
 import pandas as pd
 
 from fem_import.modes import FEModes
-from receptance.dofs import Point
+from receptance.dofs import DofError, Point
 from receptance.modal_model import ModalModel, ModelError
 
 __all__ = ["hybrid_model", "read_pairing_table", "check_pairing", "check_fe_for_model", "DEFAULT_ZETA",
@@ -365,6 +365,8 @@ def hybrid_model(
     kept = np.array([j for j in range(n_fe) if origin[j]], int)
     if not np.any([origin[j] == "test" for j in kept]):
         raise ModelError("the pairing pairs no test mode with an FE mode; nothing to build a hybrid model from")
+    if points:
+        _warn_if_not_railway_frame(points, fe)
     sub = FEModes(fe.node_ids, fe.xyz, fe.elements, f_fe[kept], shapes[kept], fe.modal_mass[kept],
                   source=fe.source, format=fe.format, units=fe.units, history=fe.history)
     n_test = sum(origin[j] == "test" for j in kept)
@@ -373,3 +375,14 @@ def hybrid_model(
                       test_only=tuple(zip(test_only["f_test_hz"].astype(float), test_only["zeta"].astype(float))),
                       history=(f"hybrid model from {fe.source or 'FE modes'}: {n_test} modes with test frequency and "
                                f"damping, {sum(origin[j] == 'fe' for j in kept)} FE-only, {len(rigid)} rigid",))
+
+
+def _warn_if_not_railway_frame(points: Mapping[str, Point], fe: FEModes) -> None:
+    """A model whose points are not in the railway frame compares with the lab's tables of its own frame, but its
+    ``:z`` DOFs are not vertical: the field side refuses it and the geometric effects do not apply (said once)."""
+    from .frame import check_railway_frame
+
+    try:
+        check_railway_frame(points, fe, what=f"the hybrid model of {fe.source or 'the FE modes'}")
+    except DofError as exc:
+        log.warning("%s. The lab comparison in the FE's own frame is unaffected.", exc)

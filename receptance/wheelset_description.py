@@ -91,7 +91,10 @@ class WheelsetDescription:
     rolling_radius, rim_radius, hub_radius : float or None
         [m].
     hub_planes : dict side -> y or None
-        Axial position of each wheel's hub (web) plane [m].
+        Axial position of each wheel's hub (web) plane [m]: the coordinate
+        along the axle, from the left wheel towards the right, through the
+        FE's origin (``y`` in the railway frame; the same number in the FE's
+        own frame, which :mod:`receptance.frame` turns).
     hanging_points : tuple or None
         Where the wheelset hung in the test: ``(x, y, z)`` tuples or point
         names; None: unknown (``rig_suspension`` fits a symmetric pair).

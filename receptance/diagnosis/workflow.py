@@ -219,8 +219,14 @@ def _save(fig, path: Path, plt) -> Path:
     return path
 
 
-def _read_setup(s: SetupFiles, table, name: str, band, max_order: int, n_averages, frf_window_decay, say):
-    """Read, (screen, estimate,) identify one setup; returns the measurement, its modes, synthesis and info."""
+def _read_setup(s: SetupFiles, table, name: str, band, max_order: int, n_averages, frf_window_decay, say,
+                frame=None):
+    """Read, (screen, estimate,) identify one setup; returns the measurement, its modes, synthesis and info.
+
+    ``table`` is in the files' frame; what is read is turned into the railway ``frame``
+    (:mod:`receptance.frame`) before it meets the model."""
+    from dataclasses import replace
+
     import ema
     from receptance.diagnosis.misfit import Measurement, check_band_lines
     from receptance.diagnosis.noise import estimate_averages, frf_noise_variance
@@ -229,6 +235,8 @@ def _read_setup(s: SetupFiles, table, name: str, band, max_order: int, n_average
     if s.hammer is not None:
         say(f"reading {s.hammer}")
         test = ema.read_hammer(s.hammer, table)  # the table read and checked before any work, not read again
+        if frame is not None and not frame.is_identity:
+            test = replace(test, channels=frame.table(test.channels))
         screening = ema.screen_hits(test, band_hz=band)
         frf = ema.estimate_frf(test, band_hz=band, screening=screening)
         force = test.force_channel
@@ -243,6 +251,8 @@ def _read_setup(s: SetupFiles, table, name: str, band, max_order: int, n_average
     else:
         say(f"reading FRFs {s.frf}")
         frf = ema.read_frf_uff(s.frf, table)
+        if frame is not None and not frame.is_identity:
+            frf = replace(frf, channels=frame.table(frf.channels))
         if frf.quantity != "accelerance":
             frf = frf.as_quantity("accelerance")
         decay = frf_window_decay if frf_window_decay is not None else _decay_from_history(frf)
@@ -279,7 +289,8 @@ def _read_setup(s: SetupFiles, table, name: str, band, max_order: int, n_average
                  "exp_window_decay": float(frf.exp_window_decay), "n_modes": len(result.modes),
                  "modes": [{"f_hz": float(f), "zeta": float(z), "mpc": float(m)}
                            for f, z, m in zip(result.modes.freqs_hz, result.modes.zeta, result.modes.mpc)]})
-    meas = Measurement(frf, table, name, noise_variance=noise_var, noise_method=method)
+    meas = Measurement(frf, table if frame is None else frame.table(table), name, noise_variance=noise_var,
+                       noise_method=method)
     info["noise_floor_method"] = meas.noise_method
     say(f"{name}: {len(result.modes)} modes identified")
     return meas, result, frf, info
@@ -393,6 +404,7 @@ def run_lab_diagnosis(setups, fem: Path, points: Path, out: Path, *, band_hz: tu
     from receptance.diagnosis.misfit import octave_edges
     from fem_import.modes import shapes_at_channels
     from receptance.dofs import check_points, read_points
+    from receptance.frame import to_railway_frame
     from receptance.hybrid import check_fe_for_model, hybrid_model
 
     say = progress or (lambda msg: None)
@@ -447,6 +459,11 @@ def run_lab_diagnosis(setups, fem: Path, points: Path, out: Path, *, band_hz: tu
     check_points(fe, point_table, source=str(points))
     for table in tables:
         shapes_at_channels(fe, table)  # every sensor on (near) its fe_node, named in the error
+    # the files are read in their own frame (a hammer file's direction codes are checked against its table there);
+    # the FE, the points, the tables and the description are then turned into the railway frame the points define
+    frame, point_table, fe, _, desc = to_railway_frame(point_table, fe, description=desc, source=str(points))
+    if not frame.is_identity:
+        say(frame.describe())
 
     # ---- identify each setup
     t0 = time.perf_counter()
@@ -455,7 +472,8 @@ def run_lab_diagnosis(setups, fem: Path, points: Path, out: Path, *, band_hz: tu
     figdir.mkdir(parents=True, exist_ok=True)
     measurements, results, frfs, info = [], [], [], []
     for s, table, name in zip(setups, tables, names):
-        meas, result, frf, inf = _read_setup(s, table, name, band, max_order, n_averages, frf_window_decay, say)
+        meas, result, frf, inf = _read_setup(s, table, name, band, max_order, n_averages, frf_window_decay, say,
+                                             frame)
         measurements.append(meas)
         results.append(result)
         frfs.append(frf)
@@ -473,7 +491,8 @@ def run_lab_diagnosis(setups, fem: Path, points: Path, out: Path, *, band_hz: tu
     model_note = (f"Hybrid model (thesis §2.3): the FE shapes of {fe.source or fem.name} "
                   f"({len(fe)} modes up to {fe.freqs_hz.max():.0f} Hz) with the test's frequency and damping for the "
                   f"{n_paired} paired modes; every other FE mode is kept with its FE frequency as the basis of the "
-                  f"structural modifications, and the model reports modes up to {band[1]:g} Hz like the test band.")
+                  f"structural modifications, and the model reports modes up to {band[1]:g} Hz like the test band."
+                  + ("" if frame.is_identity else f" Frame: {frame.describe()}."))
     say(f"{n_paired} pairs (MAC >= {mac_min:g}); hybrid model of {len(fe)} FE modes, reported up to {band[1]:g} Hz")
     timings["pair_and_model"] = time.perf_counter() - t0
 
@@ -493,12 +512,12 @@ def run_lab_diagnosis(setups, fem: Path, points: Path, out: Path, *, band_hz: tu
 
     # ---- files
     paths = _write_results(out, setups, names, results, frfs, pairing, test_modes, fe, diagnosis, comparisons, info,
-                           model_note, band, desc, fem, points, timings, t_all, say)
+                           model_note, band, desc, fem, points, timings, t_all, say, frame)
     return LabDiagnosis(out, paths, diagnosis, tuple(comparisons), pairing, tuple(info), timings, diagnosis.model)
 
 
 def _write_results(out, setups, names, results, frfs, pairing, test_modes, fe, diagnosis, comparisons, info,
-                   model_note, band, desc, fem, points, timings, t_all, say) -> dict:
+                   model_note, band, desc, fem, points, timings, t_all, say, frame) -> dict:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -585,6 +604,8 @@ def _write_results(out, setups, names, results, frfs, pairing, test_modes, fe, d
     doc["pairing"] = pairing.table
     doc["model"] = model_doc
     doc["description"] = desc.to_dict()
+    doc["frame"] = {"rotation_fe_to_railway": frame.rotation.tolist(), "note": frame.describe(),
+                    "basis": frame.basis}
     doc["band_hz"] = list(band)
     doc["inputs"] = {"setups": [{s.kind.split()[0]: str(s.data), "channels": str(s.channels)} for s in setups],
                      "fem": str(fem), "points": str(points), "description": desc.source or None}
