@@ -221,12 +221,24 @@ def check_fe_for_model(fe: FEModes, *, total_mass: float | None = None, mass_mat
     Raises
     ------
     fem_import.MassNormalisationError
-        Names the file, the mass found and what was expected.
+        Names the file, the mass found and what was expected; or, for a
+        wheelset, an export without any rigid-body mode (a free wheelset's
+        model needs them).
     """
     import warnings
 
     from fem_import.checks import MassNormalisationError, check_mass_normalisation
 
+    f = np.asarray(fe.freqs_hz, float)
+    if expect == "wheelset" and f.size and not np.any(f < RIGID_BELOW_HZ):
+        # a free wheelset's receptance below its first flexible mode is its rigid-body mass line (thesis eq. 2.28
+        # with the rigid modes): without them the model is wrong there by orders of magnitude, and its mass cannot
+        # be checked; many solvers leave them out when asked for modes from a frequency above 0 Hz
+        raise MassNormalisationError(
+            f"{fe.source or 'FE modes'}: the export holds no rigid-body modes (its lowest mode is at {f.min():.4g} Hz, "
+            f"none below {RIGID_BELOW_HZ:g} Hz): the model of a free wheelset needs its six rigid-body modes (its mass "
+            f"and inertia carry the receptance below the first flexible mode, and check the shapes' normalisation); "
+            f"export the modes from 0 Hz (e.g. Nastran EIGRL with V1 blank, Abaqus *FREQUENCY without a lower bound)")
     rb = check_mass_normalisation(fe, total_mass=total_mass, mass_matrix=mass_matrix)
     if rb is None or total_mass is not None or expect != "wheelset":
         return rb

@@ -102,6 +102,8 @@ class WheelsetGeometry:
     total_mass : float or None
         Mass the rigid-body modes imply [kg] (None: no six rigid modes or no coordinates).
     description : WheelsetDescription
+    line_source : str
+        How the axle line was found when the export's beam elements could not tell it ("" when they did).
     """
 
     axis_xz: tuple[float, float]
@@ -111,6 +113,7 @@ class WheelsetGeometry:
     axle_y: np.ndarray
     total_mass: float | None
     description: WheelsetDescription
+    line_source: str = ""
 
     def radial(self, xyz: np.ndarray) -> np.ndarray:
         """Distance of points from the axle axis [m]."""
@@ -122,6 +125,9 @@ class WheelsetGeometry:
         k = int(np.argmin(np.abs(self.axle_y - y)))
         return int(self.axle_nodes[k]), float(abs(self.axle_y[k] - y))
 
+
+#: (FE source, statement) already logged: a fallback is said once per export, not once per candidate fit
+_SAID: set = set()
 
 #: two nodes move as one rigid link when their motions (transported rigidly) agree to this share in every mode
 TIED_RTOL = 1e-4
@@ -198,6 +204,7 @@ def wheelset_geometry(model, description: WheelsetDescription | None = None, *, 
                                   "state wheel.rolling_radius_m in the wheelset description")
     tol = AXIS_FRACTION * scale
     on_axis = r_nodes <= tol
+    line_source = ""
     ids = fe.node_ids
     index = {int(n): k for k, n in enumerate(ids)}
     line: set[int] = set()
@@ -212,16 +219,29 @@ def wheelset_geometry(model, description: WheelsetDescription | None = None, *, 
         line.update(rows)
     if len(line) < 2:
         line = set(np.flatnonzero(on_axis).tolist())
+        # without connectivity a node of the points table that shares its place on the axis with another node is
+        # a part tied there (an axlebox node on its journal), not the axle: the axle keeps the other
+        named = {index[p.fe_node] for p in getattr(model, "points", {}).values()
+                 if p.fe_node is not None and p.fe_node in index and index[p.fe_node] in line}
+        for r in sorted(named):
+            others = [k for k in line if k != r and np.linalg.norm(fe.xyz[k] - fe.xyz[r]) <= COINCIDE_FRACTION * scale]
+            if others:
+                line.discard(r)
         if len(line) >= 2:
-            log.info("%s: no beam elements along the axle axis; every node on the axis is taken as the axle line",
-                     fe.source or "FE export")
+            line_source = ("the export has no element records" if not fe.elements else
+                           "no beam elements run along the axle axis")
+            line_source += ("; every node on the axle axis is taken as the axle line, except the points table's "
+                            "nodes that share a place with another (taken as parts tied there)")
+            if (fe.source, line_source) not in _SAID:
+                _SAID.add((fe.source, line_source))
+                log.warning("%s: %s", fe.source or "FE export", line_source)
     if len(line) < 2:
         raise EffectNotApplicable(effect, f"no axle line: fewer than two FE nodes lie on the axle axis (within "
                                           f"{tol:.3g} m of x = {axis_xz[0]:.3g}, z = {axis_xz[1]:.3g} m)",
                                   "export the axle's centre-line nodes (beam axle, or RBE2 spider centres)")
     rows = np.array(sorted(line, key=lambda r: fe.xyz[r, 1]))
     return WheelsetGeometry(axis_xz, scale, source, ids[rows].astype(int), fe.xyz[rows, 1].copy(), total_mass(fe),
-                            desc)
+                            desc, line_source)
 
 
 def total_mass(fe, rigid_below_hz: float = 1.0) -> float | None:
@@ -397,7 +417,8 @@ def axlebox_attachment(model, geometry: WheelsetGeometry, side: str, setups: Seq
             f"{'/'.join(f'{v:g}' for v in desc.axlebox_inertia)} kg m^2"
             + ("" if mass_in_fe else ", added (the FE lacks it)")
             + ("" if mass_in_fe is False else ", taken off the journal")
-            + f"; {len(carried) - 1} sensor(s) move with it")
+            + f"; {len(carried) - 1} sensor(s) move with it"
+            + (f" ({geometry.line_source})" if geometry.line_source else ""))
     return AxleboxAttachment(side, tuple(float(c) for c in centre), journal, own, bool(mass_in_fe),
                              tuple(carried), case, note)
 
