@@ -404,6 +404,7 @@ def run_lab_diagnosis(setups, fem: Path, points: Path, out: Path, *, band_hz: tu
     from receptance.diagnosis.misfit import octave_edges
     from fem_import.modes import shapes_at_channels
     from receptance.dofs import check_points, read_points
+    from receptance.diagnosis.scale import check_modal_scale, modal_scale
     from receptance.frame import to_railway_frame
     from receptance.hybrid import check_fe_for_model, hybrid_model
 
@@ -474,6 +475,12 @@ def run_lab_diagnosis(setups, fem: Path, points: Path, out: Path, *, band_hz: tu
     for s, table, name in zip(setups, tables, names):
         meas, result, frf, inf = _read_setup(s, table, name, band, max_order, n_averages, frf_window_decay, say,
                                              frame)
+        # units and normalisation on both sides, before minutes of fitting (receptance.diagnosis.scale)
+        scale = modal_scale(result.modes, fe, frame.table(table), setup=name)
+        if scale is not None:
+            inf["modal_scale"] = {"ratio": scale.ratio, "n_modes": scale.n_modes}
+            say(f"{name}: measured modal constants {scale.ratio:.3g} × the FE's ({scale.n_modes} well-paired modes)")
+        check_modal_scale(scale, fem=str(fem), measurement=str(s.data))
         measurements.append(meas)
         results.append(result)
         frfs.append(frf)
