@@ -133,6 +133,20 @@ def test_an_export_without_rigid_body_modes_is_refused_with_the_remedy():
         check_fe_for_model(cut)
 
 
+@pytest.mark.parametrize("effect", [AxleboxBearing(), WheelSeatJoint()])
+def test_effects_on_rotations_say_when_the_export_has_none(effect):
+    """A 3-DOF export (translations only, as a solid model writes it): the bearing's rocking and the seat's rocking
+    and torsion need nodal rotations. Before, the fit failed on 'journal_L:rx' or on a rim point 0.16 m from its
+    node, reported as a fault of the toolkit; now the effect is not applicable, with the reason and the remedy."""
+    from dataclasses import replace
+
+    _, fe, points = build("own_node", "ring")
+    model = as_model(replace(fe, shapes=fe.shapes[..., :3]), points)
+    with pytest.raises(EffectNotApplicable, match="no rotations .* solid-element export") as exc:
+        effect.attach(model, (), describe())
+    assert "6 DOF per node" in exc.value.remedy
+
+
 def test_attachments_scale_with_the_model_not_with_millimetres():
     """Twice the size and other node labels: the same attachments (tolerances are fractions of the wheel)."""
     _, fe, points = build("own_node", "ring", scale=2.0, id_offset=70000)

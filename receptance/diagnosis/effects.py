@@ -51,8 +51,8 @@ import numpy as np
 import pandas as pd
 
 from receptance.diagnosis.errors import EffectNotApplicable
-from receptance.diagnosis.geometry import (SIDES, axlebox_attachment, hanging_attachment, wheel_attachment,
-                                           wheelset_geometry)
+from receptance.diagnosis.geometry import (SIDES, axlebox_attachment, hanging_attachment, needs_rotations,
+                                           wheel_attachment, wheelset_geometry)
 from receptance.dofs import Point
 from receptance.effect_modifications import (BearingBodies, RigSprings, SeatJoints, SensorMasses, SlingSprings)
 from receptance.modal_model import ChannelTerms, ModalModel, ModelError
@@ -364,6 +364,8 @@ class AxleboxBearing(Effect):
             changes["axlebox_inertia"] = tuple(self.inertia)
         if changes:
             desc = desc.with_values(**changes)
+        needs_rotations(model, self.name, "its rocking springs act on the journal's rotation and carry the "
+                                          "axlebox's inertia")
         geo = wheelset_geometry(model, desc, effect=self.name)
         boxes = [axlebox_attachment(model, geo, s, setups, effect=self.name) for s in self.sides]
         journals = tuple(Point(f"journal_{b.side}", b.journal_node, b.centre) for b in boxes)
@@ -450,6 +452,8 @@ class WheelSeatJoint(Effect):
                                             ("web_mass", self.web_mass)) if v is not None}
         if changes:
             desc = desc.with_values(**changes)
+        needs_rotations(model, self.name, "its rocking and torsional springs act on the seat's and the hub's "
+                                          "rotations, and the wheel's mass moves rigidly with the hub")
         geo = wheelset_geometry(model, desc, effect=self.name)
         wheels = [wheel_attachment(model, geo, s, effect=self.name) for s in self.sides]
         seats = tuple(Point(f"seat_{w.side}", w.seat_node, w.centre) for w in wheels)

@@ -56,7 +56,7 @@ from receptance.dofs import Point
 from receptance.diagnosis.errors import EffectNotApplicable
 from receptance.wheelset_description import WheelsetDescription
 
-__all__ = ["WheelsetGeometry", "wheelset_geometry", "moves_with", "TIED_RTOL", "AxleboxAttachment", "axlebox_attachment", "WheelAttachment",
+__all__ = ["WheelsetGeometry", "wheelset_geometry", "needs_rotations", "moves_with", "TIED_RTOL", "AxleboxAttachment", "axlebox_attachment", "WheelAttachment",
            "wheel_attachment", "hanging_attachment", "total_mass", "AXIS_FRACTION", "COINCIDE_FRACTION", "JOURNAL_FRACTION",
            "WHEEL_HALF_WIDTH", "WHEEL_OUTER", "BEAM_DESCRIPTORS", "SIDES"]
 
@@ -158,6 +158,16 @@ def _point_xyz(model, name: str) -> np.ndarray | None:
     if p.fe_node is not None and p.fe_node in set(model.fe.node_ids.tolist()):
         return model.fe.xyz[model.fe.index(p.fe_node)]
     return None
+
+
+def needs_rotations(model, effect: str, why: str) -> None:
+    """Refuse an effect that acts on nodal rotations when the export has none (3 DOF per node, as a solid-element
+    model is exported): named, with what would make it apply, instead of a failed fit."""
+    if not model.fe.has_rotations:
+        raise EffectNotApplicable(effect, f"the FE shapes have no rotations (3 DOF per node, as a solid-element export "
+                                          f"writes them): {why}",
+                                  "export the rotations too (6 DOF per node), with the axle's centre line as beam "
+                                  "or RBE2/RBE3 nodes whose rotations the export holds")
 
 
 def wheelset_geometry(model, description: WheelsetDescription | None = None, *, effect: str = "effect"
