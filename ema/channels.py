@@ -9,14 +9,39 @@ column     required meaning
 node       yes      channel / response node number, as in the UFF58 ``rsp_node``
 name       yes      channel name, e.g. ``axle_01`` (the FRF output label)
 quantity   yes      ``force`` (exactly one row: the hammer) or ``acceleration``
-unit       yes      ``N`` for force, ``m/s^2`` for acceleration (SI only)
+unit       yes      ``N`` for force, ``m/s^2`` for acceleration: the SI unit the
+                    toolkit works in (data labelled g, kN, lbf, in/s^2... in
+                    the file are converted by their labels, see
+                    :data:`UNIT_TO_SI`)
 x, y, z    yes      sensor position [m]
 dx, dy, dz yes      unit measuring direction (normalised if within 1e-3 of 1)
 fe_node    no       FE node the sensor is rigidly attached to
-sensitivity no      sensor sensitivity, informational (data are in SI units)
+sensitivity no      the factor on the recorded values that gives SI units, as in
+                    the field sensor table (:mod:`estimator.io.sensors`):
+                    ``SI = recorded x sensitivity``, 1 for data already in SI;
+                    see *Sensitivity* below
 setup      no       name of the test setup (``flexural``, ``torsional``, ...);
                     one value for the whole table (a hammer test is one setup)
 ========== ======== ==============================================================
+
+A channel is identified by its ``node`` and ``quantity``: a driving point
+(the hammer and an accelerometer at the same UFF node, told apart in the file
+by the specific data type, 13 excitation force / 12 acceleration) is two rows
+with the same node. Two rows with the same node and quantity are refused
+(one node per sensor: a triaxial accelerometer needs a node per direction).
+
+Sensitivity
+-----------
+Data recorded as raw voltages carry an electrical unit label (``V``, ``mV``,
+``µV``; :data:`ELECTRICAL_UNITS`) or none at all (empty or ``NONE``): the
+readers multiply them by the channel's ``sensitivity``, the factor from the
+recorded values to SI (for an accelerometer of 10.2 mV/(m/s²) recorded in V,
+``1 / 0.0102 = 98.04``; recorded in mV, ``0.098``; a hammer of 2.25 mV/N
+recorded in V, ``444.4``). Without a ``sensitivity`` column, an electrical
+label is refused (the data cannot be converted) and unlabelled data are taken
+as SI. Data labelled in a physical unit were converted by the front end: they
+are converted by their label and the sensitivity is not applied (a WARNING
+names the channels whose sensitivity is not 1). See :func:`unit_kind`.
 
 Descriptive columns (:data:`DESCRIPTIVE_COLUMNS`: ``comment``, ``description``,
 ``serial``, ...) are kept as they are. Any other column is kept with a
@@ -48,6 +73,10 @@ __all__ = [
     "DESCRIPTIVE_COLUMNS",
     "CHANNEL_QUANTITIES",
     "UNIT_TO_SI",
+    "ELECTRICAL_UNITS",
+    "unit_key",
+    "unit_kind",
+    "datasheet_like_sensitivity",
     "validate_channels",
     "read_channels",
     "read_table_csv",
@@ -68,12 +97,24 @@ CHANNEL_QUANTITIES: dict[str, tuple[str, ...]] = {
     "force": ("N",),
     "acceleration": ("m/s^2", "m/s2", "m/s**2", "m/s\u00b2"),
 }
-#: Unit labels front-ends write (lower case, no blanks) -> factor to the quantity's SI unit (data in g, kN, ...).
+#: Unit labels front-ends write (:func:`unit_key` form: lower case, no blanks, ``**`` and ``²`` as ``^2``) ->
+#: factor to the quantity's SI unit (data in g, kN, in/s^2, ...). ``s\ufffd`` is a latin-1/cp1252 ``s²``
+#: (Windows front ends) as pyuff decodes it (UTF-8 with replacement characters).
 UNIT_TO_SI: dict[str, dict[str, float]] = {
-    "acceleration": {"m/s^2": 1.0, "m/s2": 1.0, "m/s**2": 1.0, "m/s\u00b2": 1.0, "mm/s^2": 1e-3, "mm/s2": 1e-3,
-                     "g": 9.80665},
-    "force": {"n": 1.0, "kn": 1e3, "lbf": 4.4482216152605},
+    "acceleration": {"m/s^2": 1.0, "m/s2": 1.0, "m/s/s": 1.0, "m/sec^2": 1.0, "m/sec2": 1.0, "m/s\ufffd": 1.0,
+                     "mm/s^2": 1e-3, "mm/s2": 1e-3, "mm/s\ufffd": 1e-3,
+                     "in/s^2": 0.0254, "in/s2": 0.0254, "in/s/s": 0.0254, "in/sec^2": 0.0254, "in/sec2": 0.0254,
+                     "in/s\ufffd": 0.0254,
+                     "ft/s^2": 0.3048, "ft/s2": 0.3048, "ft/s/s": 0.3048, "ft/sec^2": 0.3048, "ft/sec2": 0.3048,
+                     "ft/s\ufffd": 0.3048,
+                     "g": 9.80665, "gn": 9.80665, "g0": 9.80665, "mg": 9.80665e-3},
+    "force": {"n": 1.0, "newton": 1.0, "newtons": 1.0, "kn": 1e3, "dan": 10.0, "lbf": 4.4482216152605,
+              "lb": 4.4482216152605, "lbs": 4.4482216152605, "kgf": 9.80665, "kp": 9.80665},
 }
+#: Electrical unit labels (:func:`unit_key` form) -> volts per unit: the data are raw voltages that only a
+#: sensitivity converts (``\ufffdv`` is a latin-1 ``µV`` decoded as UTF-8 with replacement).
+ELECTRICAL_UNITS: dict[str, float] = {"v": 1.0, "volt": 1.0, "volts": 1.0, "mv": 1e-3, "uv": 1e-6,
+                                      "\u00b5v": 1e-6, "\u03bcv": 1e-6, "\ufffdv": 1e-6}
 #: Largest node number: UFF node fields are I10 (and FE codes use 32-bit labels).
 MAX_NODE = 2**31 - 1
 #: A direction vector whose norm differs from 1 by more than this is rejected
@@ -83,6 +124,60 @@ DIRECTION_NORM_TOL = 1e-3
 
 class ChannelTableError(ValueError):
     """A channel table that does not follow the schema (see :mod:`ema.channels`)."""
+
+
+def unit_key(label) -> str:
+    """The form of a unit label looked up in :data:`UNIT_TO_SI`: lower case, no blanks, ``**`` as ``^``,
+    superscript ``²`` as ``^2`` (``'M/S²'`` -> ``'m/s^2'``); ``''`` for no label (empty or ``NONE``)."""
+    key = "".join(str(label if label is not None else "").split()).lower()
+    key = key.replace("**", "^").replace("\u00b2", "^2")
+    return "" if key == "none" else key
+
+
+#: Smallest plausible sensitivity of data recorded in volts [SI unit per V]: a hammer gives tens to thousands of N/V
+#: (25 to 0.2 mV/N), an accelerometer about 1 to 1e5 (m/s^2)/V (10 V/g to 0.1 mV/g); a datasheet sensitivity
+#: (V per SI unit, 0.0002 to 0.1) written in its place is far below.
+MIN_SENSITIVITY_PER_VOLT = 0.5
+
+
+def datasheet_like_sensitivity(label, sensitivity: float) -> bool:
+    """Whether the sensitivity of data labelled in an electrical unit looks like a datasheet value (V per SI unit)
+    rather than the factor on the recorded values: below :data:`MIN_SENSITIVITY_PER_VOLT` SI units per volt."""
+    volts = ELECTRICAL_UNITS.get(unit_key(label))
+    return volts is not None and float(sensitivity) / volts < MIN_SENSITIVITY_PER_VOLT
+
+
+def unit_kind(quantity: str, label) -> tuple[str, float]:
+    """What a channel's unit label in a file says about its data, and the factor to SI it implies.
+
+    Parameters
+    ----------
+    quantity : {"force", "acceleration"}
+        The channel's quantity (from the channel table).
+    label : str
+        The unit label written in the file (UFF58 record 10).
+
+    Returns
+    -------
+    kind : {"raw", "physical", "electrical", "other", "unknown"}
+        ``raw``: no label (empty or ``NONE``), the data are as recorded;
+        ``physical``: a unit of the quantity (factor to SI);
+        ``electrical``: V, mV, µV (factor to volts): raw voltages;
+        ``other``: a unit of the other quantity (``g`` on a force channel);
+        ``unknown``: not recognised.
+    factor : float
+        Factor to SI (``physical``), to volts (``electrical``), else 1.
+    """
+    key = unit_key(label)
+    if not key:
+        return "raw", 1.0
+    if key in UNIT_TO_SI[quantity]:
+        return "physical", UNIT_TO_SI[quantity][key]
+    if key in ELECTRICAL_UNITS:
+        return "electrical", ELECTRICAL_UNITS[key]
+    if any(key in units for q, units in UNIT_TO_SI.items() if q != quantity):
+        return "other", 1.0
+    return "unknown", 1.0
 
 
 def _where(source: str) -> str:
@@ -192,7 +287,9 @@ def validate_channels(df: pd.DataFrame, *, source: str = "", warn_extra: bool = 
     ChannelTableError
         A required column is missing; a value is missing, non-numeric or not
         finite; a quantity or unit is not allowed; there is not exactly one
-        force row; a node or name is repeated; a direction is not a unit
+        force row; a name, or a node with the same quantity, is repeated
+        (a force and an acceleration row may share a node: a driving
+        point); a direction is not a unit
         vector (within 1e-3); ``fe_node`` is not a positive integer or
         ``sensitivity`` not a positive number; a column is repeated or a
         misspelt known column (``fe-node``); the ``setup`` column names more
@@ -231,6 +328,8 @@ def validate_channels(df: pd.DataFrame, *, source: str = "", warn_extra: bool = 
                     f"{where}: {_row_label(out, i) if col != 'node' else f'row {i + 1}'}, column {col!r}: "
                     f"expected a positive integer node number up to {MAX_NODE} (the I10 field of a universal "
                     f"file), got {v!r}"
+                    + ("; UFF node numbers start at 1: renumber a 0-based channel numbering in the export and the "
+                       "table" if col == "node" and isinstance(v, (int, float)) and v == 0 else "")
                     + (". Leave fe_node out of the table if the FE node is unknown." if col == "fe_node" else "")
                 )
             vals.append(int(fv))
@@ -255,7 +354,9 @@ def validate_channels(df: pd.DataFrame, *, source: str = "", warn_extra: bool = 
         if u not in CHANNEL_QUANTITIES[q]:
             raise ChannelTableError(
                 f"{where}: {_row_label(out, i)}, column 'unit': a {q} channel must be in "
-                f"{CHANNEL_QUANTITIES[q][0]!r} (SI), got {u!r}; convert the data to SI units before export"
+                f"{CHANNEL_QUANTITIES[q][0]!r} (SI), got {u!r}: write the SI unit here, the unit the toolkit works "
+                f"in; data labelled in other units in the file (g, mg, in/s^2, kN, lbf...) are converted by their "
+                f"labels, and raw voltages by a 'sensitivity' column (SI = recorded x sensitivity)"
             )
     out["unit"] = [CHANNEL_QUANTITIES[q][0] for q in out["quantity"]]
     n_force = int((out["quantity"] == "force").sum())
@@ -281,15 +382,24 @@ def validate_channels(df: pd.DataFrame, *, source: str = "", warn_extra: bool = 
                 f"found {len(groups)}: {listed}; split the table (and the hammer-test file) per setup"
             )
 
-    # -- uniqueness
-    for col in ("node", "name"):
-        dup = out[col][out[col].duplicated(keep=False)]
-        if len(dup):
-            rows = [int(i) + 1 for i in dup.index]
-            raise ChannelTableError(
-                f"{where}: column {col!r} must be unique, but {dup.iloc[0]!r} appears in rows {rows}; "
-                f"give every channel its own {col}"
-            )
+    # -- uniqueness: a channel is (node, quantity); a driving point has a force and an acceleration row at
+    # one node, which the file tells apart by the specific data type (13 excitation force, 12 acceleration)
+    dup = out[out.duplicated(["node", "quantity"], keep=False)]
+    if len(dup):
+        node, q = int(dup["node"].iloc[0]), str(dup["quantity"].iloc[0])
+        rows = [int(i) + 1 for i in dup.index[(dup["node"] == node) & (dup["quantity"] == q)]]
+        raise ChannelTableError(
+            f"{where}: column 'node' must be unique per quantity, but node {node} appears as {q} in rows {rows}; "
+            f"give every sensor its own node (in the file and the table; a triaxial accelerometer needs one node "
+            f"per direction). Only a driving point may share a node: one force row and one acceleration row"
+        )
+    dup = out["name"][out["name"].duplicated(keep=False)]
+    if len(dup):
+        rows = [int(i) + 1 for i in dup.index]
+        raise ChannelTableError(
+            f"{where}: column 'name' must be unique, but {str(dup.iloc[0])!r} appears in rows {rows}; "
+            f"give every channel its own name"
+        )
 
     # -- floats
     for col in ("x", "y", "z", "dx", "dy", "dz") + (("sensitivity",) if "sensitivity" in out.columns else ()):
@@ -301,7 +411,7 @@ def validate_channels(df: pd.DataFrame, *, source: str = "", warn_extra: bool = 
             i = int(np.flatnonzero(bad)[0])
             what = "a positive finite number" if col == "sensitivity" else "a finite number"
             raise ChannelTableError(
-                f"{where}: {_row_label(out, i)}, column {col!r}: expected {what}, got {df[col].iloc[i]!r}"
+                f"{where}: {_row_label(out, i)}, column {col!r}: expected {what}, got {df[col].tolist()[i]!r}"
             )
         out[col] = vals
 
@@ -313,7 +423,8 @@ def validate_channels(df: pd.DataFrame, *, source: str = "", warn_extra: bool = 
         i = int(np.flatnonzero(bad)[0])
         raise ChannelTableError(
             f"{where}: {_row_label(out, i)}, columns ('dx', 'dy', 'dz'): the measuring direction must be a "
-            f"unit vector (norm within {DIRECTION_NORM_TOL:g} of 1), got {tuple(d[i])} with norm {norm[i]:.6g}; "
+            f"unit vector (norm within {DIRECTION_NORM_TOL:g} of 1), got {tuple(float(v) for v in d[i])} with norm "
+            f"{norm[i]:.6g}; "
             f"check the signs and the sensor orientation"
         )
     d = d / norm[:, None]

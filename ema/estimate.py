@@ -24,7 +24,11 @@ each side and zeroed elsewhere. It removes the force channel's noise from the
 long record; the force is zero there anyway.
 
 *Exponential window*: ``w(t) = exp(-a (t - t_hit))`` over the whole record,
-``t_hit`` the start of the main pulse of the hit. It makes lightly damped
+``t_hit`` the start of the main pulse of the hit. Both windows are placed
+per hit at its own pulse (sample index) on the test's time axis, so records
+of different hits that started at different absolute times (trigger times,
+sub-sample trigger jitter; :func:`ema.read_hammer`) give the same FRF: only
+the alignment of force and responses within a hit matters. It makes lightly damped
 responses decay within the record (no leakage). Its effect is exact and known:
 if ``a(t) = (h * f)(t)`` then ``w a = (w h) * (w f)`` for an exponential ``w``,
 so the windowed FRF is the true one evaluated at ``s = i omega + a``: every
@@ -227,14 +231,16 @@ def auto_exp_decay(test: HammerTest, *, target: float = 1e-4, accepted: np.ndarr
 def _band_lines(test: HammerTest, band_hz: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
     lo, hi = (float(b) for b in band_hz)
     nyq = test.fs / 2
+    src = test.source or "hammer test"
     if not (0 <= lo < hi <= nyq):
         raise EstimationError(
-            f"band_hz must satisfy 0 <= low < high <= fs/2 = {nyq:g} Hz, got {band_hz!r}"
+            f"{src}: band_hz must satisfy 0 <= low < high <= fs/2 = {nyq:g} Hz (sampled at {test.fs:g} Hz), got "
+            f"({lo:g}, {hi:g})"
         )
     f = np.fft.rfftfreq(test.n_samples, d=1.0 / test.fs)
     idx = np.flatnonzero((f >= lo) & (f <= hi))
     if idx.size == 0:
-        raise EstimationError(f"band_hz {band_hz!r} holds no frequency line of the {f[1]:g} Hz grid")
+        raise EstimationError(f"{src}: band_hz ({lo:g}, {hi:g}) holds no frequency line of the {f[1]:g} Hz grid")
     return f[idx], idx
 
 

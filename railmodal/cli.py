@@ -40,6 +40,9 @@ from railmodal.monitor_commands import add_monitor_commands
 
 __all__ = ["main"]
 
+#: Most --hammer files of one setup in 'lab identify' (one hit per file is common; tens of hits make a setup).
+MAX_HAMMER_FILES = 200
+
 
 def _scenario_names() -> list[str]:
     from lab_data.scenarios import SCENARIOS
@@ -152,23 +155,26 @@ def _cmd_identify(args: argparse.Namespace) -> int:
 
     out = Path(args.out)
     band = tuple(args.band)
+    hammers, frfs, tables = _identify_inputs(args)
     t0 = time.perf_counter()
     step = (lambda msg: None) if args.quiet else _progress
-    if args.frf is not None:  # FRFs exported by the acquisition system: nothing to screen or average
-        step(f"reading FRFs {args.frf}")
-        table = ema.read_channels(args.channels)
-        frf = ema.read_frf_uff(args.frf, table).as_quantity("accelerance").select(band_hz=band)
+    if frfs:  # FRFs exported by the acquisition system: nothing to screen or average
+        step(f"reading FRFs {frfs[0]}")
+        table = ema.read_channels(tables[0])
+        frf = ema.read_frf_uff(frfs[0], table, exp_window_decay=args.window_decay)
+        frf = frf.as_quantity("accelerance").select(band_hz=band)
         screening = None
         named = "setup" in table and table["setup"].notna().any()
-        setup = args.setup or (str(table["setup"].dropna().iloc[0]) if named else Path(args.frf).stem)
+        setup = args.setup or (str(table["setup"].dropna().iloc[0]) if named else Path(frfs[0]).stem)
     else:
-        step(f"reading {args.hammer}")
-        test = ema.read_hammer(args.hammer, args.channels)
+        step(f"reading {hammers[0]}" if len(hammers) == 1 else
+             f"reading {len(hammers)} files of one setup ({hammers[0]} ... {hammers[-1]})")
+        test = ema.read_hammer(hammers if len(hammers) > 1 else hammers[0], tables[0])
         step(f"{len(test.hits)} hits x {test.responses.shape[1]} channels at {test.fs:g} Hz; screening hits and "
              f"estimating H1 in {band[0]:g}-{band[1]:g} Hz")
         screening = ema.screen_hits(test, band_hz=band)
         frf = ema.estimate_frf(test, band_hz=band, screening=screening)
-        setup = args.setup or _setup_name(test, Path(args.hammer))
+        setup = args.setup or _setup_name(test, Path(hammers[0]))
     step(f"identifying (LSCE to order {args.max_order}, automatic pole selection, LSFD)")
     result = ema.identify(frf, band_hz=band, max_order=args.max_order, setup=setup)
     modes = result.modes
@@ -190,6 +196,39 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     print(f"written: {out / 'modes.csv'}, {out / 'modes.uff'}, {out / 'stabilisation.png'}, {out / 'synthesis.png'}"
           + (f", {out / 'screening.csv'}" if screening is not None else ""))
     return 0
+
+
+def _identify_inputs(args: argparse.Namespace) -> tuple[list[str], list[str], list[str]]:
+    """The --hammer files, --frf files and --channels tables of ``lab identify``, checked before any reading.
+
+    Several --hammer files are the hits of one setup (one hit per file): read as one test with one channel
+    table. Repeated --frf or different --channels are refused (argparse error, exit status 2): the last one
+    would otherwise be used silently.
+    """
+    parser = args._identify_parser
+    hammers, frfs, tables = list(args.hammer or []), list(args.frf or []), list(args.channels or [])
+    if len(frfs) > 1:
+        parser.error(f"--frf given {len(frfs)} times; 'lab identify' reads one FRF file (a setup's FRFs as the "
+                     f"front end exported them): identify each file on its own")
+    if len(hammers) > MAX_HAMMER_FILES:
+        parser.error(f"--hammer given {len(hammers)} times; at most {MAX_HAMMER_FILES} files make one test")
+    seen: dict = {}
+    for k, h in enumerate(hammers):
+        key = Path(h).resolve()
+        if key in seen:
+            parser.error(f"--hammer {h} is given twice (files {seen[key] + 1} and {k + 1}); its hits would be "
+                         f"averaged in twice")
+        seen[key] = k
+    if len({Path(c).resolve() for c in tables}) > 1:
+        contents = {Path(c).read_bytes() for c in tables}
+        if len(contents) > 1:
+            parser.error(f"--channels given {len(tables)} times with different tables "
+                         f"({', '.join(map(str, tables))}); 'lab identify' identifies one setup: give its one channel "
+                         f"table (several --hammer files of the setup share it)")
+    if args.window_decay is not None and not frfs:
+        parser.error("--window-decay is the decay of the exponential window a front end applied to --frf files; "
+                     "with --hammer the toolkit chooses its own window and corrects the damping for it")
+    return hammers, frfs, tables
 
 
 def _setup_name(test, path: Path) -> str:
@@ -312,13 +351,24 @@ def build_parser() -> argparse.ArgumentParser:
     rd.set_defaults(func=_cmd_render)
     ident = lab_sub.add_parser("identify", help="identify modes from a hammer-test file or exported FRFs")
     source = ident.add_mutually_exclusive_group(required=True)
-    source.add_argument("--hammer", type=existing_file("--hammer", "hammer-test (UFF58)"),
-                        help="UFF58 time histories (one dataset per channel per hit)")
-    source.add_argument("--frf", type=existing_file("--frf", "FRF (UFF58)"),
+    source.add_argument("--hammer", action="append", type=existing_file("--hammer", "hammer-test (UFF58)"),
+                        help="UFF58 time histories (one dataset per channel per hit); repeat it for a setup whose "
+                             "hits are stored in several files (one hit per file): they are read as one test, the "
+                             "hits renumbered in the order given, every file checked against the one --channels "
+                             f"table (at most {MAX_HAMMER_FILES} files)")
+    source.add_argument("--frf", action="append", type=existing_file("--frf", "FRF (UFF58)"),
                         help="UFF58 FRFs as an acquisition system exports them (function type 4, accelerance/"
-                             "mobility/receptance, ASCII or binary, coherence optional), in place of --hammer")
-    ident.add_argument("--channels", required=True, type=existing_file("--channels", "channel table"),
-                       help="channel table CSV")
+                             "mobility/receptance, ASCII or binary, coherence optional), in place of --hammer; "
+                             "one file")
+    ident.add_argument("--channels", required=True, action="append",
+                       type=existing_file("--channels", "channel table"),
+                       help="channel table CSV of the setup (one table; several --hammer files share it)")
+    ident.add_argument("--window-decay", type=bounded_float("--window-decay", 0.0, 1000.0, unit="1/s"),
+                       default=None,
+                       help="decay [1/s] of the exponential (response) window the front end applied to the --frf "
+                            "file's FRFs, removed from the damping; default: the file's 'exp_window_decay=' note in "
+                            "ID line 3, else none: the damping is then taken as exported (a WARNING says so), too "
+                            "high by decay/omega if a window was applied. Only with --frf")
     ident.add_argument("--band", nargs=2, type=bounded_float("--band", 0.0, 1e5, unit="Hz"),
                        action=band_action("--band", 0.0, 1e5), default=[10.0, 500.0], metavar=("LOW", "HIGH"),
                        help="identification band [Hz], 0 <= LOW < HIGH <= fs/2 (default 10 500)")
@@ -326,7 +376,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help=f"largest LSCE order, 1 to {MAX_ORDER} (default 100)")
     ident.add_argument("--setup", default=None, help="setup name (default: the table's 'setup' column or file name)")
     ident.add_argument("--out", required=True, type=output_folder("--out"))
-    ident.set_defaults(func=_cmd_identify)
+    ident.set_defaults(func=_cmd_identify, _identify_parser=ident)
     pair = lab_sub.add_parser("pair", help="pair identified modes with an FE export by MAC")
     pair.add_argument("--modes", required=True, action="append",
                       type=existing_folder("--modes", "modes (written by 'lab identify')"),
