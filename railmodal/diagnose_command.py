@@ -124,8 +124,10 @@ def add_diagnose_parser(lab_subparsers) -> argparse.ArgumentParser:
                     "compare it with the measured FRFs, find the missing physical effects one by one, and write "
                     "diagnosis.json, a self-contained report.html (figures also as PNG in figures/) and the "
                     "diagnosed model hybrid_model.npz into --out.")
-    d.add_argument("--hammer", action=_SetupData, type=existing_file("--hammer", "hammer-test (UFF58)"),
-                   help="UFF58 hammer-test time histories of one setup (repeat per setup, each with its --channels)")
+    d.add_argument("--hammer", action=_SetupData, nargs="+", type=existing_file("--hammer", "hammer-test (UFF58)"),
+                   metavar="FILE",
+                   help="UFF58 hammer-test time histories of one setup (repeat per setup, each with its --channels); "
+                        "several files after one --hammer are the hits of one setup stored one (or a few) per file")
     d.add_argument("--frf", action=_SetupData, type=existing_file("--frf", "FRF (UFF58)"),
                    help="UFF58 FRFs of one setup as a commercial system exports them (function type 4, "
                         "accelerance/mobility/receptance, ASCII or binary, coherence (type 6) optional); in place "
@@ -158,7 +160,8 @@ def add_diagnose_parser(lab_subparsers) -> argparse.ArgumentParser:
     d.add_argument("--averages", type=bounded_int("--averages", 2, 10000), default=None,
                    help="number of averages behind the coherence of --frf files (default: estimated)")
     d.add_argument("--window-decay", type=bounded_float("--window-decay", 0.0, 1000.0, unit="1/s"), default=None,
-                   help="exponential-window decay of --frf files [1/s] (default: from the file header, else 0)")
+                   help="exponential-window decay of --frf files [1/s] (default: the file's note in ID line 3, "
+                        "else none: the damping is taken as exported, with a WARNING)")
     d.add_argument("--workers", type=bounded_int("--workers", 1, 64), default=None,
                    help="parallel processes fitting the candidates (default: the usable cores)")
     d.set_defaults(func=cmd_diagnose, _diagnose_parser=d, setup_data=None)

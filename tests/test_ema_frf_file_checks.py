@@ -82,8 +82,9 @@ def test_impossible_coherence_is_refused_and_orphan_coherence_is_logged(tmp_path
 
 
 def test_unknown_or_contradictory_units_labels_are_logged_or_refused(tmp_path, caplog):
-    """'in/s^2' over 'lbf': taken as SI with a WARNING naming the datasets, channels and labels (as read_hammer
-    does), noted in the history. An acceleration (ordinate type 12) labelled m/s/N is refused naming the dataset
+    """A label no front end writes ('furlong/s^2' over 'stone'): taken as SI with a WARNING naming the datasets,
+    channels and labels (as read_hammer does), noted in the history ('in/s^2' over 'lbf' is converted now:
+    tests/test_lab_real_exports.py). An acceleration (ordinate type 12) labelled m/s/N is refused naming the dataset
     unless quantity= decides. The writer's own labels ('m/s^2/N' over 'N') read without any warning."""
     p = _write(tmp_path / "si.uff")
     with caplog.at_level(logging.WARNING, logger="ema"):
@@ -96,11 +97,11 @@ def test_unknown_or_contradictory_units_labels_are_logged_or_refused(tmp_path, c
                 d["ordinate_axis_units_lab"], d["orddenom_axis_units_lab"] = num, den
         return edit
 
-    inch = _rewrite(p, tmp_path / "inch.uff", relabel("in/s^2", "lbf"))
+    inch = _rewrite(p, tmp_path / "inch.uff", relabel("furlong/s^2", "stone"))
     with caplog.at_level(logging.WARNING, logger="ema"):
         frf = read_frf_uff(inch, _table())
     np.testing.assert_allclose(frf.data, ref.data, rtol=1e-12)
-    assert re.search(r"inch\.uff: units label 'in/s\^2' over 'lbf' not recognised \(dataset 1 \(response 'acc_101' "
+    assert re.search(r"inch\.uff: units label 'furlong/s\^2' over 'stone' not recognised \(dataset 1 \(response 'acc_101' "
                      r"\(node 101:\+z\)\), dataset 2 \(response 'acc_102'.*taken as SI \(m/s\^2/N\)", caplog.text)
     assert any("not recognised" in h for h in frf.history)
 

@@ -341,8 +341,30 @@ def test_two_setups_with_the_same_name_are_refused_before_any_work(tmp_path, cap
                  str(table), "--fem", fem, "--points", points, "--out", str(tmp_path / "out")])
     assert code == 1
     err = capsys.readouterr().err
-    assert "same name 'flexural'" in err and a in err and b in err
+    assert "same name 'flexural'" in err and a in err and b in err and "give them all after one --hammer" in err
     assert not (tmp_path / "out").exists()
+
+
+def test_hits_stored_in_several_files_are_one_setup(tmp_path, capsys, monkeypatch):
+    """A lab that writes one hit per file gives them all after one --hammer: one setup (read as one test by
+    ema.read_hammer), paired with its --channels; the same-name refusal says how to do it."""
+    import railmodal.diagnose_command as dc
+
+    a, b, c, ca, cb, fem, points = _files(tmp_path, "h1.uff", "h2.uff", "t.uff", "a.csv", "b.csv", "fe.uff",
+                                          "points.csv")
+    seen = {}
+
+    def fake(setups, *args, **kwargs):
+        seen["setups"] = setups
+        raise ValueError("stop here")
+
+    monkeypatch.setattr(dc, "run_staged", fake)
+    assert main(["lab", "diagnose", "--hammer", a, b, "--channels", ca, "--hammer", c, "--channels", cb, "--fem",
+                 fem, "--points", points, "--out", str(tmp_path / "out")]) == 1
+    first, second = seen["setups"]
+    assert [str(f) for f in first.files] == [a, b] and str(first.channels) == ca and first.data == Path(a)
+    assert [str(f) for f in second.files] == [c] and str(second.channels) == cb
+    assert "(2 files)" in first.label and second.label == c
 
 
 def test_diagnosis_json_converter_makes_strict_json():

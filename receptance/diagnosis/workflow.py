@@ -65,24 +65,46 @@ MAX_SETUPS = 20
 
 @dataclass(frozen=True)
 class SetupFiles:
-    """One setup's files: its channel table and either the hammer-test time histories or the exported FRFs."""
+    """One setup's files: its channel table and either the hammer-test time histories or the exported FRFs.
+
+    ``hammer`` may be several files (a lab that stores one hit per file): they are read as the hits of one test
+    (:func:`ema.read_hammer`)."""
 
     channels: Path
-    hammer: Path | None = None
+    hammer: Path | tuple[Path, ...] | None = None
     frf: Path | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "channels", Path(self.channels))
-        for name in ("hammer", "frf"):
-            v = getattr(self, name)
-            object.__setattr__(self, name, None if v is None else Path(v))
+        h = self.hammer
+        if isinstance(h, (list, tuple)):
+            h = tuple(Path(v) for v in h)
+            if not h:
+                h = None
+            elif len(h) == 1:
+                h = h[0]
+        object.__setattr__(self, "hammer", None if h is None else (h if isinstance(h, tuple) else Path(h)))
+        object.__setattr__(self, "frf", None if self.frf is None else Path(self.frf))
         if (self.hammer is None) == (self.frf is None):
             raise ValueError(f"setup with channel table {self.channels}: give either a hammer-test file or an FRF "
                              f"file, not {'both' if self.hammer else 'neither'}")
 
     @property
+    def files(self) -> tuple[Path, ...]:
+        """The data files (one, or the hammer test's several)."""
+        d = self.hammer if self.hammer is not None else self.frf
+        return d if isinstance(d, tuple) else (d,)
+
+    @property
     def data(self) -> Path:
-        return self.hammer if self.hammer is not None else self.frf
+        """The (first) data file: the setup's default name comes from its stem."""
+        return self.files[0]
+
+    @property
+    def label(self) -> str:
+        """The data files for messages."""
+        f = self.files
+        return str(f[0]) if len(f) == 1 else f"{f[0]} … {f[-1].name} ({len(f)} files)"
 
     @property
     def kind(self) -> str:
@@ -191,7 +213,7 @@ def _check_inputs(setups: Sequence[SetupFiles], fem: Path, points: Path) -> None
     if len(setups) > MAX_SETUPS:
         raise ValueError(f"at most {MAX_SETUPS} setups, got {len(setups)}")
     for k, s in enumerate(setups, 1):
-        for role, p in ((s.kind, s.data), ("channel table", s.channels)):
+        for role, p in [(s.kind, f) for f in s.files] + [("channel table", s.channels)]:
             if not p.is_file():
                 raise FileNotFoundError(f"setup {k}: {role} not found: {p}")
     if not Path(fem).is_file():
@@ -233,15 +255,15 @@ def _read_setup(s: SetupFiles, table, name: str, band, max_order: int, n_average
 
     info = {"setup": name, "channels": str(s.channels)}
     if s.hammer is not None:
-        say(f"reading {s.hammer}")
-        test = ema.read_hammer(s.hammer, table)  # the table read and checked before any work, not read again
+        say(f"reading {s.label}")
+        test = ema.read_hammer(list(s.files), table)  # the table read and checked before any work, not read again
         if frame is not None and not frame.is_identity:
             test = replace(test, channels=frame.table(test.channels))
         screening = ema.screen_hits(test, band_hz=band)
         frf = ema.estimate_frf(test, band_hz=band, screening=screening)
         force = test.force_channel
         navg = frf.n_averages
-        info.update({"hammer": str(s.hammer), "n_channels": int(frf.n_out), "n_channels_in_file": int(test.n_channels),
+        info.update({"hammer": ", ".join(map(str, s.files)), "n_channels": int(frf.n_out), "n_channels_in_file": int(test.n_channels),
                      "force": f"{force['name']} (node {int(force['node'])})", "hits": [int(h) for h in test.hits],
                      "rejected_hits": [int(h) for h in screening.rejected_hits],
                      "rejections": [str(r) for r in screening.rejections],
@@ -250,14 +272,12 @@ def _read_setup(s: SetupFiles, table, name: str, band, max_order: int, n_average
             f"identifying (LSCE to order {max_order}, LSFD)")
     else:
         say(f"reading FRFs {s.frf}")
-        frf = ema.read_frf_uff(s.frf, table)
+        # the decay: --window-decay, else the file's note, else none (the reader warns that damping is as exported)
+        frf = ema.read_frf_uff(s.frf, table, exp_window_decay=frf_window_decay)
         if frame is not None and not frame.is_identity:
             frf = replace(frf, channels=frame.table(frf.channels))
         if frf.quantity != "accelerance":
             frf = frf.as_quantity("accelerance")
-        decay = frf_window_decay if frf_window_decay is not None else _decay_from_history(frf)
-        if decay:
-            frf = frf.with_history(f"exponential window a = {decay:g} 1/s", exp_window_decay=float(decay))
         try:
             frf = frf.select(band_hz=band)
         except ValueError as exc:
@@ -268,7 +288,7 @@ def _read_setup(s: SetupFiles, table, name: str, band, max_order: int, n_average
         say(f"{name}: {frf.n_out} FRFs read ({'with' if frf.coherence is not None else 'without'} coherence); "
             f"identifying (LSCE to order {max_order}, LSFD)")
     # the diagnosis' octave cells must be resolved by this setup's lines: refused before minutes of identification
-    check_band_lines(band, frf.freqs_hz, f"setup {name!r} ({s.data})")
+    check_band_lines(band, frf.freqs_hz, f"setup {name!r} ({s.label})")
     result = ema.identify(frf, band_hz=band, max_order=max_order, setup=name)
     noise_var, method = None, ""
     if s.frf is not None:
@@ -294,18 +314,6 @@ def _read_setup(s: SetupFiles, table, name: str, band, max_order: int, n_average
     info["noise_floor_method"] = meas.noise_method
     say(f"{name}: {len(result.modes)} modes identified")
     return meas, result, frf, info
-
-
-_DECAY = re.compile(r"exp(?:onential)?[ _]window[ _]decay\s*=\s*([0-9.eE+-]+)")
-
-
-def _decay_from_history(frf) -> float:
-    """The exponential-window decay a writer recorded in the FRF file's header (ema.uff_frf.write_frf_uff)."""
-    for h in frf.history:
-        m = _DECAY.search(str(h))
-        if m:
-            return float(m.group(1))
-    return 0.0
 
 
 def run_lab_diagnosis(setups, fem: Path, points: Path, out: Path, *, band_hz: tuple[float, float] = (10.0, 500.0),
@@ -437,8 +445,10 @@ def run_lab_diagnosis(setups, fem: Path, points: Path, out: Path, *, band_hz: tu
         table = read_channels(s.channels)
         name = _setup_name(table, s.data)
         if name in names:
-            raise ValueError(f"setups {setups[names.index(name)].data} and {s.data} have the same name {name!r} (the "
-                             f"channel tables' 'setup' column, else the file name); give each setup its own")
+            raise ValueError(f"setups {setups[names.index(name)].label} and {s.label} have the same name {name!r} "
+                             f"(the channel tables' 'setup' column, else the file name); give each setup its own, or, "
+                             f"if they are the hits of one setup stored in several files, give them all after one "
+                             f"--hammer (SetupFiles(hammer=[...]))")
         names.append(name)
         tables.append(table)
     point_table = read_points(points)
@@ -480,7 +490,7 @@ def run_lab_diagnosis(setups, fem: Path, points: Path, out: Path, *, band_hz: tu
         if scale is not None:
             inf["modal_scale"] = {"ratio": scale.ratio, "n_modes": scale.n_modes}
             say(f"{name}: measured modal constants {scale.ratio:.3g} × the FE's ({scale.n_modes} well-paired modes)")
-        check_modal_scale(scale, fem=str(fem), measurement=str(s.data))
+        check_modal_scale(scale, fem=str(fem), measurement=s.label)
         measurements.append(meas)
         results.append(result)
         frfs.append(frf)
@@ -614,13 +624,14 @@ def _write_results(out, setups, names, results, frfs, pairing, test_modes, fe, d
     doc["frame"] = {"rotation_fe_to_railway": frame.rotation.tolist(), "note": frame.describe(),
                     "basis": frame.basis}
     doc["band_hz"] = list(band)
-    doc["inputs"] = {"setups": [{s.kind.split()[0]: str(s.data), "channels": str(s.channels)} for s in setups],
+    doc["inputs"] = {"setups": [{s.kind.split()[0]: [str(f) for f in s.files] if len(s.files) > 1 else str(s.data),
+                                 "channels": str(s.channels)} for s in setups],
                      "fem": str(fem), "points": str(points), "description": desc.source or None}
     doc["files"] = {k: os.path.relpath(p, out) for k, p in paths.items()}
     doc["timings_s"] = timings
     text = json.dumps(to_jsonable(doc), indent=1, allow_nan=False)
     paths["json"].write_text(text + "\n", encoding="utf-8")
-    inputs = {f"setup {n}": f"{s.data} + {s.channels}" for n, s in zip(names, setups)}
+    inputs = {f"setup {n}": f"{s.label} + {s.channels}" for n, s in zip(names, setups)}
     inputs.update({"FE modes": str(fem), "points": str(points), "band": f"{band[0]:g}–{band[1]:g} Hz",
                    "wheelset description": desc.source or "none (thesis Table 2.1 defaults)"})
     write_diagnosis_report(
