@@ -272,6 +272,25 @@ def test_control_perfect_models_score_at_the_noise_floor():
     assert shifted["shift_pct"].iloc[0] == pytest.approx(1.0, abs=0.1)
 
 
+def test_a_setup_without_coherence_beside_one_with_it_keeps_the_noise_floor():
+    """One setup from a hammer test (coherence and averages: the H1 variance), the other an FRF file without
+    coherence carrying its own noise estimate (or a one-hit setup): the floor is each setup's own, stacked. Before,
+    it was NaN whenever the setups did not all carry the same kind. Oracle: the same floor as when the second
+    setup's estimate is its own H1 variance."""
+    from dataclasses import replace
+
+    from receptance.diagnosis import Measurement, h1_variance
+
+    L = lab("control")
+    (s1, (h1, t1)), (s2, (h2, t2)) = L.meas.items()
+    both = compare(L.model, [Measurement(h1, t1, s1), Measurement(h2, t2, s2)])
+    bare = replace(h2, coherence=None)
+    mixed = compare(L.model, [Measurement(h1, t1, s1), Measurement(bare, t2, s2, noise_variance=h1_variance(h2))])
+    assert np.isfinite(mixed.noise_floor) and mixed.noise_floor == pytest.approx(both.noise_floor, rel=1e-9)
+    unknown = compare(L.model, [Measurement(h1, t1, s1), Measurement(bare, t2, s2)])
+    assert np.isnan(unknown.noise_floor)  # no estimate at all for the second setup: unknown, not made up
+
+
 def test_rig_springs_show_as_a_mass_line_error_in_the_lowest_octave():
     """Crane springs (hidden in 'rig') lift bounce and roll to 3.8 and 5.3 Hz, so above them the measured
     accelerance exceeds the free-free mass line by |s^2/(s^2 + w_r^2)|. The lowest octave is the worst band;

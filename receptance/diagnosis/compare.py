@@ -1007,9 +1007,12 @@ def compare(model, measurements, *, band_hz: tuple[float, float] | None = (10.0,
             if any(b <= a for a, b in band_list):
                 raise ComparisonError(f"every band must have high > low, got {bands!r}")
     noise = None
-    if measured.coherence is None or measured.n_averages is None:
-        if all(v is not None for v in variances):
-            noise = np.concatenate([np.asarray(v, float) for v in variances], axis=0)
+    if h1_variance(measured) is None:
+        # a setup with coherence gives its H1 variance, one without carries its estimate: the floor is known when
+        # every setup has one or the other (a hammer setup beside an FRF file without coherence, or a one-hit setup)
+        per_setup = [v if v is not None else h1_variance(p) for v, p in zip(variances, meas_parts)]
+        if all(v is not None for v in per_setup):
+            noise = np.concatenate([np.asarray(v, float) for v in per_setup], axis=0)
     c = Comparison(measured, modelled, table, band, None, band_list, peak_prominence_db, peak_tolerance,
                    peak_min_channels, tuple(items), noise)
     log.info("%s", c.describe().splitlines()[0])

@@ -305,6 +305,13 @@ def _read_setup(s: SetupFiles, table, name: str, band, max_order: int, n_average
             info["n_averages"] = [int(np.min(frf.n_averages)), int(np.max(frf.n_averages))]
         else:
             noise_var, method = frf_noise_variance(frf, result.synthesis)
+    elif frf.n_averages is None or int(np.min(frf.n_averages)) < 2:
+        # one hit left (one recorded, or the others rejected): H1 has no coherence to give a noise floor
+        noise_var, method = frf_noise_variance(frf, result.synthesis)
+        log.warning("setup %r (%s): a single hit is averaged for some channels, so the FRFs have no coherence; the "
+                    "noise floor comes from the modal fit's residual (an upper bound). Record several hits per setup.",
+                    name, s.label)
+        method = f"single hit, no coherence: {method}"
     info.update({"n_lines": int(frf.freqs_hz.size), "band_hz": f"{band[0]:g}–{band[1]:g}",
                  "exp_window_decay": float(frf.exp_window_decay), "n_modes": len(result.modes),
                  "modes": [{"f_hz": float(f), "zeta": float(z), "mpc": float(m)}
