@@ -410,6 +410,19 @@ def main(argv: list[str] | None = None) -> int:
         print("railmodal: error: out of memory; ask for a smaller problem (fewer lines, orders or models)",
               file=sys.stderr)
         return 1
+    except KeyboardInterrupt:
+        print("railmodal: interrupted; nothing was written to --out (results are written last)", file=sys.stderr)
+        return 130
+    except Exception as exc:  # noqa: BLE001  the user gets one line, never a traceback (-v shows it)
+        # the toolkit raises named errors (ValueError subclasses) for every input it checks; anything else is an
+        # input it did not foresee or a fault of its own: say which operation failed, keep the detail for -v
+        if args.verbose:
+            import traceback
+
+            traceback.print_exc()
+        print(f"railmodal: error: unexpected {type(exc).__name__}: {exc}; an input the checks did not foresee or a "
+              f"fault of the toolkit (run again with -v for the traceback, and report it)", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

@@ -72,3 +72,20 @@ def test_cli_reports_errors_without_a_traceback(tmp_path, capsys):
     err = capsys.readouterr().err
     assert exc.value.code == 2 and "error: argument --out" in err and str(blocker) in err and "Traceback" not in err
     assert not (blocker.parent / "sub").exists()
+
+
+def test_an_unforeseen_error_type_reaches_the_user_as_one_line(monkeypatch, capsys):
+    """An exception the toolkit did not name (a TypeError deep in a library, say) is one 'railmodal: error:' line
+    naming its type, exit 1, never a traceback; -v shows the traceback for a report."""
+    import railmodal.cli as cli
+
+    def boom(args):
+        raise TypeError("unsupported operand type(s) for +: 'NoneType' and 'int'")
+
+    monkeypatch.setattr(cli, "_cmd_scenarios", boom)  # bound when the parser is built, below
+    assert cli.main(["-q", "lab", "scenarios"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("railmodal: error: unexpected TypeError: unsupported operand")
+    assert "Traceback" not in err and "-v" in err
+    assert cli.main(["-v", "lab", "scenarios"]) == 1
+    assert "Traceback" in capsys.readouterr().err
