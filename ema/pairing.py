@@ -169,9 +169,12 @@ class Pairing:
     unpaired_fe : tuple of int
         FE modes in the band without a test partner (rigid modes excluded).
     table : pandas.DataFrame
-        Thesis Table 3.1 style: ``test_mode, f_test_hz, fe_modes, f_fe_hz, df_pct, zeta, mac, setup,
-        fe_weights, description`` (``fe_weights``: the ``;``-joined unit-norm combination of a degenerate
-        cluster's members that matches the test mode),
+        Thesis Table 3.1 style: ``test_mode, f_test_hz, fe_modes, fe_mode_numbers, f_fe_hz, df_pct, zeta, mac,
+        setup, fe_weights, description`` (``fe_modes``: the ``+``-joined 1-based positions of the FE modes in
+        the export, what :func:`receptance.hybrid_model` reads back; ``fe_mode_numbers``: the same modes by the
+        numbers the FE file gives them, :attr:`~fem_import.modes.FEModes.mode_numbers`, which differ from the
+        positions when the export starts at another number or leaves modes out; ``fe_weights``: the
+        ``;``-joined unit-norm combination of a degenerate cluster's members that matches the test mode),
         with unpaired modes of either side as rows with empty partner fields.
     """
 
@@ -293,7 +296,7 @@ def pair_modes(
             # bending of a pair), not two test modes that both look like the same FE combination
             if any(abs(rot @ u) > 0.5 for u in used_directions.get(k, [])):
                 log.info("test mode %d at %.2f Hz resembles FE mode(s) %s already paired with a better match",
-                         i, test.freqs_hz[i], [x + 1 for x in c])
+                         i + 1, test.freqs_hz[i], _numbers(fe, c))
                 continue
             used_directions.setdefault(k, []).append(rot)
             shape = np.tensordot(rot, fe.shapes[c], axes=1)
@@ -304,10 +307,15 @@ def pair_modes(
     unpaired_test = tuple(i for i in range(len(test)) if i not in paired_test)
     unpaired_fe = tuple(j for c in clusters for j in c if j not in used_fe)
     for i in unpaired_test:
-        log.info("test mode %d at %.2f Hz has no FE partner (best subspace MAC %.2f)", i, test.freqs_hz[i],
+        log.info("test mode %d at %.2f Hz has no FE partner (best subspace MAC %.2f)", i + 1, test.freqs_hz[i],
                  sub[i].max() if sub.size else 0.0)
     table = _table(test, fe, pairs, unpaired_test, unpaired_fe)
     return Pairing(tuple(pairs), mac, sub, clusters, unpaired_test, unpaired_fe, table)
+
+
+def _numbers(fe: FEModes, indices) -> str:
+    """The FE file's numbers of the modes at ``indices`` (0-based positions), ``+``-joined."""
+    return "+".join(str(int(fe.mode_numbers[j])) for j in indices)
 
 
 def _table(test: ModeSet, fe: FEModes, pairs, unpaired_test, unpaired_fe) -> pd.DataFrame:
@@ -320,6 +328,7 @@ def _table(test: ModeSet, fe: FEModes, pairs, unpaired_test, unpaired_fe) -> pd.
                 "test_mode": p.test_index + 1,
                 "f_test_hz": f_t,
                 "fe_modes": "+".join(str(j + 1) for j in p.fe_indices),
+                "fe_mode_numbers": _numbers(fe, p.fe_indices),
                 "f_fe_hz": f_fe,
                 "df_pct": 100 * (f_fe - f_t) / f_t,
                 "zeta": test.zeta[p.test_index],
@@ -331,17 +340,19 @@ def _table(test: ModeSet, fe: FEModes, pairs, unpaired_test, unpaired_fe) -> pd.
         )
     for i in unpaired_test:
         rows.append(
-            {"test_mode": i + 1, "f_test_hz": test.freqs_hz[i], "fe_modes": "", "f_fe_hz": np.nan, "df_pct": np.nan,
+            {"test_mode": i + 1, "f_test_hz": test.freqs_hz[i], "fe_modes": "", "fe_mode_numbers": "",
+             "f_fe_hz": np.nan, "df_pct": np.nan,
              "zeta": test.zeta[i], "mac": np.nan, "setup": test.setup[i], "fe_weights": "",
              "description": "test only (no FE partner)"}
         )
     for j in unpaired_fe:
         rows.append(
-            {"test_mode": np.nan, "f_test_hz": np.nan, "fe_modes": str(j + 1), "f_fe_hz": fe.freqs_hz[j],
+            {"test_mode": np.nan, "f_test_hz": np.nan, "fe_modes": str(j + 1), "fe_mode_numbers": _numbers(fe, [j]),
+             "f_fe_hz": fe.freqs_hz[j],
              "df_pct": np.nan, "zeta": np.nan, "mac": np.nan, "setup": "", "fe_weights": "",
              "description": f"FE only: {describe_fe_mode(fe, j)}"}
         )
-    df = pd.DataFrame(rows, columns=["test_mode", "f_test_hz", "fe_modes", "f_fe_hz", "df_pct", "zeta", "mac", "setup",
-                                     "fe_weights", "description"])
+    df = pd.DataFrame(rows, columns=["test_mode", "f_test_hz", "fe_modes", "fe_mode_numbers", "f_fe_hz", "df_pct",
+                                     "zeta", "mac", "setup", "fe_weights", "description"])
     key = df["f_test_hz"].fillna(df["f_fe_hz"])
     return df.iloc[np.argsort(key.to_numpy(), kind="stable")].reset_index(drop=True)

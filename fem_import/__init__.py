@@ -11,17 +11,23 @@ Public API
 ----------
 read(path, format=None, *, geometry=None, **kwargs) -> FEModes
     Read modes through the format registry (format sniffed from content).
-read_with_geometry(path, geometry=None) -> (FEModes, note)
-    The same, with node coordinates from ``geometry`` (UFF 2411 or Nastran
-    bulk GRID cards) or a companion file; says which file is needed.
+read_with_geometry(path, geometry=None, *, subcase=None) -> (FEModes, note)
+    The same, with node coordinates and elements from ``geometry`` (UFF
+    2411/2412 or a Nastran bulk deck: GRID and element cards) or a companion
+    file; says which file is needed. What the command line calls.
 check_mass_normalisation(fe, total_mass=None, mass_matrix=None), rigid_body_mass(fe)
     Mass normalisation against the rigid-body modes, a total mass, a mass matrix.
+rigid_body_modes(fe) -> RigidBodyModes
+    The six rigid-body modes recognised by their shapes (or the frequency
+    gap without coordinates), with the reason when there are not six.
 formats() -> tuple of str
     Registered format names; :func:`format_info`, :func:`register_format`,
     :func:`unregister_format`, :func:`detect_format`, :func:`read_geometry`,
     :func:`merge_geometry`.
 FEModes, Element, Geometry
-    The data types; :meth:`FEModes.at_points`, :meth:`FEModes.nearest_node`.
+    The data types; :meth:`FEModes.at_points`, :meth:`FEModes.nearest_node`,
+    :attr:`FEModes.mode_numbers` (the file's mode numbers) and
+    :meth:`FEModes.mode_index`.
 shapes_at_channels(fe_modes, channels) -> ndarray
     Shapes at the rows of a channel table.
 Exceptions: UnknownFormatError, FEReadError, FEGeometryError,
@@ -59,10 +65,12 @@ from . import uff as _uff, punch as _punch, nastran_bulk as _bulk  # noqa: E402,
 from .checks import (  # noqa: E402
     MassNormalisationError,
     RigidBodyMass,
+    RigidBodyModes,
     check_mass_normalisation,
     check_mode_values,
     model_size,
     rigid_body_mass,
+    rigid_body_modes,
 )
 
 _logging.getLogger("fem_import").addHandler(_logging.NullHandler())
@@ -72,5 +80,6 @@ __all__ = [
     "FEModes", "Element", "Geometry", "FormatInfo", "DOF_NAMES", "shapes_at_channels",
     "FEImportError", "UnknownFormatError", "FEReadError", "FEGeometryError", "MissingCoordinatesError",
     "PointToleranceError", "read_with_geometry", "find_geometry_companion", "MassNormalisationError", "RigidBodyMass",
-    "check_mass_normalisation", "check_mode_values", "model_size", "rigid_body_mass",
+    "check_mass_normalisation", "check_mode_values", "model_size", "rigid_body_mass", "RigidBodyModes",
+    "rigid_body_modes",
 ]

@@ -6,9 +6,21 @@ The tolerances scale with the model, not with any particular mesh:
   (sensor, contact point) is rigidly attached to its FE node by a link of
   length ``|p - x_node|``; a link longer than ``POINT_OFFSET_FRACTION * D``
   (a quarter of the structure) is not a rigid attachment but a wrong node or
-  a wrong unit. When scaling the point by 1e-3, 1e-2 or 0.0254 brings it
-  within the tolerance of its node the message says "looks like mm / cm /
-  inches".
+  a wrong unit. Which side has the wrong unit is told apart: when the FE's
+  node coordinates times 1e-3, 1e-2 or 0.0254 put the node near the point,
+  or the model is larger than a railway wheelset can be
+  (:data:`WHEELSET_SIZE_M`) and such a factor brings it into that range, the
+  message says "the FE coordinates look like mm" (a UFF without dataset 164
+  or a Nastran file states no units); when scaling the *point* by such a
+  factor brings it near its node, it says the positions "look like mm / cm
+  / inches" (points must be in metres whatever the FE's units).
+* **Rigid-body modes** (:func:`rigid_body_modes`): the six lowest modes of a
+  free-free export whose shapes are rigid-body motions, recognised by the
+  shapes (the residual of fitting each by a rigid motion of the nodes) and
+  not by a frequency threshold: a soft-spring or shifted free-free run puts
+  them at up to a few Hz, a well-conditioned one at 1e-4 Hz or at slightly
+  negative eigenvalues. Without node coordinates the frequency gap to the
+  first flexible mode decides.
 * **Rigid-body mass.** For a free-free export the six rigid-body modes are
   rigid motions ``u_i = t + theta x (x_i - c)`` of the nodes, so
   ``Phi_rb = R Q`` with the rigid-body matrix ``R`` of the node coordinates;
@@ -37,9 +49,10 @@ import numpy as np
 
 from .errors import FEGeometryError, FEImportError, FEReadError, PointToleranceError
 
-__all__ = ["POINT_OFFSET_FRACTION", "MAX_MASS_NORMALISED_TRANSLATION", "UNIT_SLIPS", "MassNormalisationError",
-           "RigidBodyMass", "model_size", "unit_slip", "point_offset_limit", "check_point_offsets", "rigid_body_mass",
-           "check_mass_normalisation", "check_mode_values"]
+__all__ = ["POINT_OFFSET_FRACTION", "MAX_MASS_NORMALISED_TRANSLATION", "UNIT_SLIPS", "WHEELSET_SIZE_M",
+           "RIGID_RESIDUAL_MAX", "RIGID_GAP_FRACTION", "MassNormalisationError", "RigidBodyMass", "RigidBodyModes",
+           "model_size", "unit_slip", "fe_unit_slip", "point_offset_limit", "check_point_offsets", "rigid_body_modes",
+           "rigid_body_mass", "check_mass_normalisation", "check_mode_values"]
 
 log = logging.getLogger("fem_import")
 
@@ -48,7 +61,13 @@ POINT_OFFSET_FRACTION = 0.25
 #: Largest credible mass-normalised translation [1/sqrt(kg)]: 1/u^2 = 1e-8 kg.
 MAX_MASS_NORMALISED_TRANSLATION = 1e4
 #: Unit slips tried when a point is far from its node: factor to metres and the unit's name.
-UNIT_SLIPS = ((1e-3, "mm"), (1e-2, "cm"), (0.0254, "inches"), (1e3, "km"))
+UNIT_SLIPS = ((1e-3, "mm"), (1e-2, "cm"), (0.0254, "inches"))
+#: Size range [m] (bounding-box diagonal) of a railway wheelset FE model: a larger model is in another unit.
+WHEELSET_SIZE_M = (0.3, 10.0)
+#: Largest relative residual of a rigid-body mode's shape fitted by a rigid motion of the nodes.
+RIGID_RESIDUAL_MAX = 0.05
+#: Without node coordinates, the six lowest modes are rigid-body modes when f6 <= this fraction of f7.
+RIGID_GAP_FRACTION = 0.05
 
 
 class MassNormalisationError(FEImportError):
@@ -84,6 +103,46 @@ def unit_slip(position, node_xyz, tolerance: float) -> str:
     return f" (looks like {unit}: x {factor:g} puts it {d:.3g} m from its node; positions must be in metres)"
 
 
+def _units_stated(fe) -> bool:
+    """Whether the FE's file stated its units (a UFF with dataset 164), as far as the import history tells."""
+    return not ("assumed" in str(fe.units) or any("no units dataset 164" in h for h in fe.history))
+
+
+def fe_unit_slip(fe, position, node_xyz, limit: float, node=None) -> str:
+    """Message part naming FE coordinates in another unit (mm, cm, inches), or "".
+
+    The FE is in another unit when its node coordinates times the unit's
+    factor put the node within ``limit`` times that factor of ``position``
+    and make the model wheelset-sized (:data:`WHEELSET_SIZE_M`), or when its
+    size (:func:`model_size`) exceeds that range and the factor brings it
+    into it.
+    """
+    p = np.asarray(position, float)
+    x = np.asarray(node_xyz, float)
+    size = model_size(fe)
+    lo, hi = WHEELSET_SIZE_M
+    if _units_stated(fe):
+        why = (f" although the file states {fe.units}: its units dataset 164 is wrong; export the FE in SI units "
+               f"(m) with a matching dataset 164")
+    else:
+        why = (" (the file states no units: UFF without dataset 164, or a Nastran file); the points are in metres: "
+               "export the FE in SI units (m)" + (", or add a units dataset 164" if fe.format == "uff" else ""))
+    what = f"node {node}" if node is not None else "the node"
+    for factor, unit in UNIT_SLIPS:
+        d = float(np.linalg.norm(p - factor * x))
+        # the scaled model must be wheelset-sized too: a point at the origin is near any node scaled by 1e-3
+        if d <= max(limit * factor, 1e-9) and lo <= size * factor <= hi:
+            return (f"; the FE coordinates look like {unit}: x {factor:g} puts {what} {d:.3g} m from the point and "
+                    f"makes the model {size * factor:.3g} m large{why}")
+    if np.isfinite(size) and size > hi:
+        for factor, unit in UNIT_SLIPS:
+            if lo <= size * factor <= hi:
+                return (f"; a model {size:.3g} m large is no railway wheelset ({lo:g}-{hi:g} m): the FE coordinates "
+                        f"look like {unit} (x {factor:g} makes it {size * factor:.3g} m){why}")
+        return f"; a model {size:.3g} m large is no railway wheelset ({lo:g}-{hi:g} m): check the FE's units"
+    return ""
+
+
 def check_point_offsets(fe, nodes, positions, names, *, source: str = "", limit: float | None = None) -> None:
     """Refuse points farther from their FE node than :func:`point_offset_limit`.
 
@@ -106,7 +165,9 @@ def check_point_offsets(fe, nodes, positions, names, *, source: str = "", limit:
     ------
     PointToleranceError
         Names the point, its node, the distance, the limit (and the model
-        size it comes from) and a likely unit slip.
+        size it comes from) and a likely unit slip: of the FE coordinates
+        (:func:`fe_unit_slip`, said first) or of the point's position
+        (:func:`unit_slip`).
     """
     limit = point_offset_limit(fe) if limit is None else float(limit)
     if not np.isfinite(limit) or limit <= 0:
@@ -119,11 +180,15 @@ def check_point_offsets(fe, nodes, positions, names, *, source: str = "", limit:
             continue
         d = float(np.linalg.norm(p - x))
         if d > limit:
+            head = (f"{where}{name}: position {np.round(p, 6).tolist()} m lies {d:.4g} m from its fe_node {int(node)} "
+                    f"at {np.round(x, 6).tolist()} m, more than {limit:.3g} m ({POINT_OFFSET_FRACTION:g} x the model "
+                    f"size {model_size(fe):.3g} m of {fe.source or 'the FE model'})")
+            fe_slip = fe_unit_slip(fe, p, x, limit, int(node))
+            if fe_slip:
+                raise PointToleranceError(head + fe_slip)
             raise PointToleranceError(
-                f"{where}{name}: position {np.round(p, 6).tolist()} m lies {d:.4g} m from its fe_node {int(node)} at "
-                f"{np.round(x, 6).tolist()} m, more than {limit:.3g} m ({POINT_OFFSET_FRACTION:g} x the model size "
-                f"{model_size(fe):.3g} m of {fe.source or 'the FE model'}){unit_slip(p, x, limit)}; a sensor is "
-                f"rigidly attached to a nearby node: check the fe_node and the unit of x, y, z")
+                f"{head}{unit_slip(p, x, limit)}; a sensor is rigidly attached to a nearby node: check the fe_node "
+                f"and the unit of x, y, z")
 
 
 @dataclass(frozen=True)
@@ -166,40 +231,187 @@ def _skew(r: np.ndarray) -> np.ndarray:
                      np.stack([-r[:, 1], r[:, 0], z], -1)], 1)
 
 
-def rigid_body_mass(fe, rigid_below_hz: float = 1.0) -> RigidBodyMass | None:
+@dataclass(frozen=True)
+class RigidBodyModes:
+    """Which modes of an export are its six rigid-body modes, and how that was told (:func:`rigid_body_modes`).
+
+    Attributes
+    ----------
+    indices : tuple of int
+        0-based positions of the six rigid-body modes (in frequency order);
+        empty when the export does not have six.
+    residuals : ndarray
+        Rigidity residual of each of the lowest modes examined (frequency
+        order; NaN where the coordinates cannot tell), 0 for a rigid motion.
+    gap : float
+        ``f6 / f7``: the sixth-lowest frequency over the seventh (NaN with
+        fewer than seven modes or ``f7 = 0``).
+    method : str
+        ``"shapes"`` (rigidity residual), ``"frequency gap"`` or ``""`` (none found).
+    reason : str
+        How they were recognised, or why no six rigid-body modes were found
+        (for messages: "mass check skipped: ...").
+    """
+
+    indices: tuple[int, ...]
+    residuals: np.ndarray
+    gap: float
+    method: str
+    reason: str
+
+    @property
+    def found(self) -> bool:
+        return len(self.indices) == 6
+
+
+def _rigid_basis(fe) -> tuple[np.ndarray, np.ndarray, bool] | None:
+    """Rigid-motion basis ``R`` (rows: the DOFs used), the node rows used, and whether rotations are used.
+
+    Translations ``u_i = t + theta x (x_i - c)`` of the nodes with coordinates;
+    when they cannot tell all six motions (nodes on one line: a beam model)
+    and the shapes have rotations, the rotations ``theta_i = theta`` too.
+    None when even that cannot tell them.
+    """
+    ok = np.all(np.isfinite(fe.xyz), axis=1)
+    if ok.sum() < 2:
+        return None
+    xyz = fe.xyz[ok]
+    r = xyz - xyz.mean(axis=0)
+    n = len(r)
+    R = np.concatenate([np.broadcast_to(np.eye(3), (n, 3, 3)), -_skew(r)], axis=2).reshape(-1, 6)
+    if np.linalg.matrix_rank(R) == 6:
+        return R, ok, False
+    if fe.shapes.shape[2] < 6:
+        return None
+    Rr = np.concatenate([np.zeros((n, 3, 3)), np.broadcast_to(np.eye(3), (n, 3, 3))], axis=2)
+    R = np.concatenate([R.reshape(n, 3, 6), Rr], axis=1).reshape(-1, 6)
+    if np.linalg.matrix_rank(R) < 6:
+        return None
+    return R, ok, True
+
+
+def _phi(fe, modes, ok, rotations: bool) -> np.ndarray:
+    """Shapes of ``modes`` at the rows of :func:`_rigid_basis`, one column each."""
+    sub = fe.shapes[np.asarray(modes)][:, ok, :] if rotations else fe.shapes[np.asarray(modes)][:, ok, :3]
+    return sub.reshape(len(modes), -1).T
+
+
+def rigid_body_modes(fe, *, max_residual: float = RIGID_RESIDUAL_MAX,
+                     max_gap: float = RIGID_GAP_FRACTION) -> RigidBodyModes:
+    """The six rigid-body modes of a free-free export, recognised physically rather than by a frequency threshold.
+
+    With node coordinates, the six lowest modes are the rigid-body modes when
+    each one's shape is a rigid motion of the nodes (the relative residual of
+    fitting ``u_i = t + theta x (x_i - c)``, translations, and rotations too
+    for a beam model, is at most ``max_residual``), together they span all
+    six motions, and the seventh mode is not one (seven would be a mechanism
+    or an unconnected part). Their frequencies do not matter: a shifted or
+    soft-spring free-free run puts them at a few Hz, a well-conditioned one
+    at 1e-4 Hz. Without coordinates (a punch file read alone) they are
+    recognised by the frequency gap to the first flexible mode,
+    ``f6 <= max_gap * f7``.
+
+    Parameters
+    ----------
+    fe : FEModes
+    max_residual : float
+        Largest relative rigidity residual of a rigid-body mode (default
+        :data:`RIGID_RESIDUAL_MAX`).
+    max_gap : float
+        Largest ``f6 / f7`` accepted by the frequency-gap rule (default
+        :data:`RIGID_GAP_FRACTION`).
+
+    Returns
+    -------
+    RigidBodyModes
+        ``found`` tells whether there are six; ``reason`` says how they were
+        recognised or why not.
+    """
+    f = np.asarray(fe.freqs_hz, float)
+    m = f.size
+    order = np.argsort(f, kind="stable")
+    gap = float(f[order[5]] / f[order[6]]) if m >= 7 and f[order[6]] > 0 else float("nan")
+    label = lambda j: f"mode {int(fe.mode_numbers[j])} ({f[j]:.4g} Hz)"  # noqa: E731
+    if m < 6:
+        return RigidBodyModes((), np.full(m, np.nan), gap, "", f"the export has {m} modes, fewer than the six "
+                                                               f"rigid-body modes of a free-free structure")
+    basis = _rigid_basis(fe)
+    if basis is None:
+        if np.isfinite(gap) and gap <= max_gap:
+            return RigidBodyModes(tuple(int(j) for j in order[:6]), np.full(min(m, 7), np.nan), gap,
+                                  "frequency gap", f"the six lowest modes (up to {f[order[5]]:.4g} Hz) lie below "
+                                  f"{max_gap:g} x the seventh ({f[order[6]]:.4g} Hz); no node coordinates to check "
+                                  f"their shapes")
+        why = ("there is no seventh mode to compare with" if m < 7 else
+               f"the sixth-lowest mode ({f[order[5]]:.4g} Hz) is not far below the seventh ({f[order[6]]:.4g} Hz; "
+               f"ratio {gap:.3g} > {max_gap:g})")
+        return RigidBodyModes((), np.full(min(m, 7), np.nan), gap, "",
+                              f"the shapes cannot be checked for rigid-body motion (no node coordinates, or nodes "
+                              f"that cannot tell the six motions) and {why}")
+    R, ok, rotations = basis
+    lowest = order[:min(m, 7)]
+    Phi = _phi(fe, lowest, ok, rotations)
+    Q, *_ = np.linalg.lstsq(R, Phi, rcond=None)
+    res = np.linalg.norm(R @ Q - Phi, axis=0) / np.maximum(np.linalg.norm(Phi, axis=0), 1e-300)
+    bad = [k for k in range(6) if not res[k] <= max_residual]
+    if bad:
+        k = bad[0]
+        return RigidBodyModes((), res, gap, "", f"{label(lowest[k])}, one of the six lowest, is not a rigid-body "
+                              f"motion (it deviates {100 * res[k]:.3g} % from one, more than {100 * max_residual:g} "
+                              f"%): the export has fewer than six rigid-body modes (a constrained model, or the "
+                              f"rigid-body modes were left out of the export)")
+    if m >= 7 and res[6] <= max_residual:
+        return RigidBodyModes((), res, gap, "", f"seven modes are rigid-body motions (the seventh, "
+                              f"{label(lowest[6])}, deviates {100 * res[6]:.3g} % from one): a mechanism or an "
+                              f"unconnected part; which six are the structure's cannot be told")
+    sv = np.linalg.svd(Q[:, :6], compute_uv=False)
+    if sv[-1] <= 1e-6 * sv[0]:
+        return RigidBodyModes((), res, gap, "", "the six lowest modes are rigid-body motions but not six different "
+                              "ones (two are the same motion): the export is corrupt")
+    return RigidBodyModes(tuple(int(j) for j in lowest[:6]), res, gap, "shapes",
+                          f"the six lowest modes (up to {f[lowest[5]]:.4g} Hz) are rigid-body motions (largest "
+                          f"deviation {100 * float(res[:6].max()):.2g} %)")
+
+
+def rigid_body_mass(fe, rigid_below_hz: float | None = None) -> RigidBodyMass | None:
     """Mass, centre of mass and inertia implied by the rigid-body modes (None when they cannot tell).
 
-    Needs node coordinates and exactly six modes below ``rigid_below_hz``
-    (a free-free export); the translations are used (rotational DOFs of
-    shell models can be unreliable), with the rotations too when the nodes
-    lie on one line (a beam model, whose rotation about its axis shows only
-    there).
+    Needs node coordinates and six rigid-body modes (a free-free export);
+    the translations are used (rotational DOFs of shell models can be
+    unreliable), with the rotations too when the nodes lie on one line (a
+    beam model, whose rotation about its axis shows only there).
+
+    Parameters
+    ----------
+    fe : FEModes
+    rigid_below_hz : float, optional
+        None (default): the rigid-body modes are recognised by their shapes
+        (:func:`rigid_body_modes`); a number: the modes below it, which must
+        be six (the older threshold rule).
 
     Returns
     -------
     RigidBodyMass or None
-        None without coordinates, or with fewer or more than six rigid modes.
+        None without coordinates, or without six rigid-body modes (the reason:
+        :func:`rigid_body_modes`).
     """
     f = np.asarray(fe.freqs_hz, float)
-    rigid = np.flatnonzero(f < rigid_below_hz)
+    if rigid_below_hz is None:
+        found = rigid_body_modes(fe)
+        if not found.found:
+            return None
+        rigid = np.asarray(found.indices)
+    else:
+        rigid = np.flatnonzero(f < rigid_below_hz)
     ok = np.all(np.isfinite(fe.xyz), axis=1)
     if rigid.size != 6 or ok.sum() < 3:
         return None
-    xyz = fe.xyz[ok]
-    c = xyz.mean(axis=0)
-    r = xyz - c
-    # u_i = t + theta x r_i = [I, -[r_i x]] [t; theta]
-    R = np.concatenate([np.broadcast_to(np.eye(3), (len(r), 3, 3)), -_skew(r)], axis=2).reshape(-1, 6)
-    Phi = fe.shapes[rigid][:, ok, :3].reshape(6, -1).T  # (3 n, 6)
-    if np.linalg.matrix_rank(R) < 6:
-        if fe.shapes.shape[2] < 6:
-            return None
-        # nodes on one line (a beam model): the rotation about it shows only in the rotational DOFs, theta_i = theta
-        Rr = np.concatenate([np.zeros((len(r), 3, 3)), np.broadcast_to(np.eye(3), (len(r), 3, 3))], axis=2)
-        R = np.concatenate([R.reshape(len(r), 3, 6), Rr], axis=1).reshape(-1, 6)
-        Phi = fe.shapes[rigid][:, ok, :].reshape(6, -1).T  # (6 n, 6)
-        if np.linalg.matrix_rank(R) < 6:
-            return None
+    basis = _rigid_basis(fe)
+    if basis is None:
+        return None
+    R, ok, rotations = basis
+    c = fe.xyz[ok].mean(axis=0)
+    Phi = _phi(fe, rigid, ok, rotations)
     Q, *_ = np.linalg.lstsq(R, Phi, rcond=None)
     resid = np.linalg.norm(R @ Q - Phi, axis=0) / np.maximum(np.linalg.norm(Phi, axis=0), 1e-300)
     try:
@@ -218,7 +430,7 @@ def rigid_body_mass(fe, rigid_below_hz: float = 1.0) -> RigidBodyMass | None:
 
 
 def check_mass_normalisation(fe, *, total_mass: float | None = None, mass_matrix=None, rtol: float = 0.05,
-                             rigid_below_hz: float = 1.0) -> RigidBodyMass | None:
+                             rigid_below_hz: float | None = None) -> RigidBodyMass | None:
     """Check that the shapes are mass-normalised, as far as the export allows.
 
     Parameters
@@ -231,13 +443,16 @@ def check_mass_normalisation(fe, *, total_mass: float | None = None, mass_matrix
         ``Phi^T M Phi`` must be the identity within ``rtol``.
     rtol : float
         Relative tolerance.
-    rigid_below_hz : float
-        Modes below this frequency are rigid-body modes.
+    rigid_below_hz : float, optional
+        None (default): the rigid-body modes are recognised by their shapes
+        (:func:`rigid_body_modes`); a number: the modes below it.
 
     Returns
     -------
     RigidBodyMass or None
-        The rigid-body mass properties when the export has six rigid modes and coordinates.
+        The rigid-body mass properties when the export has six rigid modes and
+        coordinates. None when the check against the rigid-body modes cannot
+        be made: a WARNING says so and why (:attr:`RigidBodyModes.reason`).
 
     Raises
     ------
@@ -258,18 +473,27 @@ def check_mass_normalisation(fe, *, total_mass: float | None = None, mass_matrix
         k = int(np.argmax(np.abs(mm - 1)))
         if abs(mm[k] - 1) > rtol:
             raise MassNormalisationError(
-                f"{src}: mode {k + 1} ({fe.freqs_hz[k]:.4g} Hz) has modal mass phi^T M phi = {mm[k]:.4g} with the "
+                f"{src}: mode {int(fe.mode_numbers[k])} ({fe.freqs_hz[k]:.4g} Hz) has modal mass phi^T M phi = "
+                f"{mm[k]:.4g} with the "
                 f"given mass matrix, expected 1 within {rtol:g}: the shapes are not mass-normalised (scaled by "
                 f"{np.sqrt(abs(mm[k])):.4g}?)")
     rb = rigid_body_mass(fe, rigid_below_hz)
     if rb is None:
-        if total_mass is not None:
-            log.warning("%s: the total mass %g kg cannot be checked: the export has no six rigid-body modes below "
-                        "%g Hz with node coordinates", src, total_mass, rigid_below_hz)
+        if not np.any(np.all(np.isfinite(fe.xyz), axis=1)):
+            why = "the modes have no node coordinates"
+        elif rigid_below_hz is None:
+            why = rigid_body_modes(fe).reason
+        else:
+            n = int(np.sum(np.asarray(fe.freqs_hz) < rigid_below_hz))
+            why = f"{n} modes lie below {rigid_below_hz:g} Hz, not the six rigid-body modes"
+        what = f"the total mass {total_mass:g} kg and the" if total_mass is not None else "the"
+        log.warning("%s: %s mass normalisation of the shapes cannot be checked against the rigid-body modes (check "
+                    "skipped): %s", src, what, why)
         return None
     if rb.mass <= 0 or rb.spread > rtol:
         raise MassNormalisationError(
-            f"{src}: the rigid-body modes {list(rb.modes)} imply different total masses along x, y, z: "
+            f"{src}: the rigid-body modes {[int(fe.mode_numbers[k - 1]) for k in rb.modes]} imply different total "
+            f"masses along x, y, z: "
             f"{', '.join(f'{v:.4g}' for v in rb.masses)} kg (spread {100 * rb.spread:.1f} %, at most "
             f"{100 * rtol:g} %); mass-normalised rigid modes give one mass: some shapes are not mass-normalised "
             f"(modal mass field wrong or shapes scaled)")
@@ -284,6 +508,12 @@ def check_mass_normalisation(fe, *, total_mass: float | None = None, mass_matrix
     log.info("%s: rigid-body modes imply a total mass of %.4g kg, centre of mass %s m", src, rb.mass,
              np.round(rb.centre, 4).tolist())
     return rb
+
+
+def _number(fe, k: int) -> int:
+    """The file's number of the mode at position ``k`` (0-based)."""
+    numbers = getattr(fe, "mode_numbers", None)
+    return int(numbers[k]) if numbers is not None else k + 1
 
 
 def check_mode_values(fe, *, source: str | None = None) -> None:
@@ -304,7 +534,7 @@ def check_mode_values(fe, *, source: str | None = None) -> None:
     k, i, d = np.unravel_index(int(np.argmax(tr)), tr.shape)
     if tr[k, i, d] > MAX_MASS_NORMALISED_TRANSLATION:
         raise FEReadError(
-            src, f"mode {k + 1} ({fe.freqs_hz[k]:.4g} Hz) has the value {shapes[k, i, d]:.4g} at node "
+            src, f"mode {_number(fe, k)} ({fe.freqs_hz[k]:.4g} Hz) has the value {shapes[k, i, d]:.4g} at node "
             f"{int(fe.node_ids[i])} ({'xyz'[d]} translation): a mass-normalised translation of that size needs a "
             # 1/u² without an overflow warning for an absurd value (a damaged file)
             f"node lighter than {math.exp(-2 * math.log(tr[k, i, d])):.3g} kg (limit |u| <= "
@@ -323,6 +553,7 @@ def check_mode_values(fe, *, source: str | None = None) -> None:
             if mac > 0.999:
                 lo, hi = sorted((int(a), int(b)))
                 raise FEReadError(
-                    src, f"modes {lo + 1} and {hi + 1} are the same mode written twice ({f[lo]:.6g} Hz, MAC "
+                    src, f"modes {_number(fe, lo)} and {_number(fe, hi)} are the same mode written twice "
+                    f"({f[lo]:.6g} Hz, MAC "
                     f"{mac:.4f} over every DOF): eigenvectors of one model are mass-orthogonal, even in a degenerate "
                     f"pair; remove the duplicate")

@@ -63,6 +63,13 @@ class FEModes:
     history : tuple of str
         Processing steps applied on import (normalisation, unit conversion,
         merged geometry...).
+    mode_numbers : ndarray of int (m,), optional
+        The number the file gives each mode (UFF 55 record 7 / 2414 record
+        10 mode number, Nastran punch ``MODE =``), in the order of the modes;
+        default (None) ``1 .. m``, their positions. They label the modes for
+        the user (a file's "mode 108" is not the 108th mode when the export
+        starts at 101 or leaves the rigid-body modes out); code indexes the
+        modes by position (0-based), :meth:`mode_index` maps one to the other.
 
     Notes
     -----
@@ -80,6 +87,7 @@ class FEModes:
     format: str = ""
     units: str = "SI (m, kg, s)"
     history: tuple[str, ...] = field(default_factory=tuple)
+    mode_numbers: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         ids = np.asarray(self.node_ids, dtype=np.int64)
@@ -102,9 +110,39 @@ class FEModes:
         object.__setattr__(self, "shapes", shapes)
         object.__setattr__(self, "modal_mass", mm)
         object.__setattr__(self, "elements", tuple(self.elements))
+        if self.mode_numbers is None:
+            numbers = np.arange(1, f.size + 1, dtype=np.int64)
+        else:
+            raw = np.asarray(self.mode_numbers)
+            try:
+                numbers = raw.astype(float)
+            except (TypeError, ValueError):
+                raise ValueError(f"FEModes.mode_numbers must be integers, got {self.mode_numbers!r}") from None
+            if numbers.shape != f.shape or not np.all(np.isfinite(numbers)) or np.any(numbers != np.round(numbers)):
+                raise ValueError(f"FEModes.mode_numbers must be {f.size} integers (one per mode), got "
+                                 f"{raw.tolist()!r}")
+            numbers = numbers.astype(np.int64)
+            uniq, counts = np.unique(numbers, return_counts=True)
+            if np.any(counts > 1):
+                raise ValueError(f"FEModes.mode_numbers must be unique; {uniq[counts > 1].tolist()} repeat")
+        object.__setattr__(self, "mode_numbers", numbers)
 
     def __len__(self) -> int:
         return self.freqs_hz.size
+
+    def mode_index(self, number: int) -> int:
+        """Position (0-based) of the mode the file numbers ``number``.
+
+        Raises
+        ------
+        KeyError
+            No mode has that number (the message lists the numbers).
+        """
+        hit = np.flatnonzero(self.mode_numbers == int(number))
+        if hit.size == 0:
+            raise KeyError(f"no mode numbered {number} in {self.source or 'the FE modes'} (mode numbers "
+                           f"{_ranges(self.mode_numbers.tolist())})")
+        return int(hit[0])
 
     @property
     def has_rotations(self) -> bool:
@@ -134,7 +172,8 @@ class FEModes:
             shapes[..., 3:] = shapes[..., 3:] @ q.T
         step = "rotated into another frame" + (f" ({note})" if note else "")
         return FEModes(self.node_ids, self.xyz @ q.T, self.elements, self.freqs_hz, shapes, self.modal_mass,
-                       source=self.source, format=self.format, units=self.units, history=self.history + (step,))
+                       source=self.source, format=self.format, units=self.units, history=self.history + (step,),
+                       mode_numbers=self.mode_numbers)
 
     def index(self, node: int) -> int:
         """Row of ``node`` in ``node_ids``; ``KeyError`` naming the node otherwise."""
@@ -206,8 +245,8 @@ class FEModes:
         if not ok.any():
             raise MissingCoordinatesError(
                 f"{name}: the FE model ({self._where()}) has no node coordinates, so the node nearest to "
-                f"{pos.tolist()} cannot be found; read it with geometry= (fem_import.read(path, geometry=...)) "
-                f"or give the fe_node")
+                f"{pos.tolist()} cannot be found; read it with geometry= (fem_import.read(path, geometry=...) in "
+                f"Python, --geometry FILE on the command line) or give the fe_node")
         rows = np.flatnonzero(ok)
         dist = np.linalg.norm(self.xyz[rows] - pos, axis=1)
         k = int(np.argmin(dist))
@@ -323,7 +362,8 @@ class FEModes:
                 raise MissingCoordinatesError(
                     f"{names[k]}: node {int(self.node_ids[rows[k]])} has no coordinates in {self._where()}, so the "
                     f"offset of the point from its node is unknown; read the modes with geometry= "
-                    f"(fem_import.read(path, geometry=...)) or pass positions=None for points at their nodes")
+                    f"(fem_import.read(path, geometry=...) in Python, --geometry FILE on the command line) or "
+                    f"pass positions=None for points at their nodes")
             offset = pos - node_xyz
             if max_offset is not None:
                 # a rigid link longer than a quarter of the structure is a wrong node or a wrong unit
@@ -345,9 +385,25 @@ class FEModes:
                 raise PointToleranceError(
                     f"{names[k]}: the shapes have no rotations (3 DOF per node) and the point lies {dist[k]:.4g} m "
                     f"from its node {int(self.node_ids[rows[k]])}, more than the tolerance {tol:g} m; attach it "
-                    f"to a closer node or raise tolerance")
+                    f"to a closer node (its fe_node), export the shapes with rotations (6 DOF per node), or, in "
+                    f"Python, pass a larger tolerance= to FEModes.at_points")
             disp = u
         return np.einsum("mpk,pk->pm", disp, d)
+
+
+def _ranges(numbers) -> str:
+    """``[1, 2, 3, 7]`` -> ``"1-3, 7"`` (in the order given)."""
+    out, run = [], []
+    for n in numbers:
+        if run and n == run[-1] + 1:
+            run.append(n)
+            continue
+        if run:
+            out.append(f"{run[0]}-{run[-1]}" if len(run) > 1 else str(run[0]))
+        run = [n]
+    if run:
+        out.append(f"{run[0]}-{run[-1]}" if len(run) > 1 else str(run[0]))
+    return ", ".join(out)
 
 
 def _check_tolerance(tolerance) -> float:

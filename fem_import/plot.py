@@ -7,10 +7,11 @@ window is selected before PyVista is imported).
 Elements (UFF 2412 FE descriptors) become: shells and plane elements
 (triangles 41, 81, 91, quadrilaterals 44, 84, 94 and their parabolic
 variants, whose nodes go round the boundary) faces; rods, beams and pipes
-(11, 21-24, 31, 32), springs (136, 137, 141) and rigid elements (121, 122,
-as a star from the first node) lines; linear solids (111 tetra, 112 wedge,
-115 brick) their boundary faces; lumped masses (161) vertices.  Display-only
-skins are ordinary quadrilaterals.
+(11, 21-24, 31, 32), springs (136, 137, 141) and rigid and constraint
+elements (121, 122, 181: a Nastran RBE3; as a star from the first node)
+lines; linear solids (111 tetra, 112 wedge, 115 brick) their boundary faces;
+lumped masses (161) and one-node elements (grounded springs 138, 139)
+vertices.  Display-only skins are ordinary quadrilaterals.
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ __all__ = ["mesh_polydata", "render_mode"]
 
 _FACES = {41, 42, 44, 45, 81, 82, 84, 85, 91, 92, 94, 95}
 _LINES = {11, 21, 22, 23, 24, 31, 32, 136, 137, 141, 171, 172}
-_STARS = {121, 122}
+_STARS = {121, 122, 181}
 _POINTS = {161}
 # boundary faces of the linear solids, in local node numbers
 _SOLIDS = {

@@ -211,24 +211,28 @@ def _parse(path: str, lines: list[str], ends_with_newline: bool = True) -> list[
     return modes
 
 
-def read_punch(path: str, *, subcase: int | None = None) -> FEModes:
+def read_punch(path: str, *, subcase: int | str | None = None) -> FEModes:
     """Read real eigenvectors from a Nastran punch file (SORT1).
 
     Parameters
     ----------
     path : str
         The file.
-    subcase : int, optional
-        Subcase to read when the file holds eigenvectors of several; None
-        (default) requires a single subcase.
+    subcase : int, "lowest" or None, optional
+        Subcase to read when the file holds eigenvectors of several. None
+        (default) requires a single subcase (several are refused, naming
+        them); ``"lowest"`` reads the lowest subcase id and logs a WARNING
+        naming the others (what :func:`fem_import.read_with_geometry`, and so
+        the command line, does).
 
     Returns
     -------
     FEModes
         Modes in file order, 6 DOF per grid in the grid order of the first
         mode, frequencies ``sqrt(max(lambda, 0)) / 2 pi`` [Hz], modal mass 1
-        (mass-normalised, Nastran's default); node coordinates NaN and no
-        elements (merge them with ``read(..., geometry=...)``).
+        (mass-normalised, Nastran's default), the file's ``MODE`` numbers as
+        :attr:`~fem_import.modes.FEModes.mode_numbers`; node coordinates NaN
+        and no elements (merge them with ``read(..., geometry=...)``).
 
     Raises
     ------
@@ -250,10 +254,22 @@ def read_punch(path: str, *, subcase: int | None = None) -> FEModes:
         raise FEReadError(path, "no real eigenvectors found (expected '$EIGENVECTOR', '$REAL OUTPUT' and "
                           "'$EIGENVALUE' header cards followed by grid cards)")
     subcases = sorted({m.subcase for m in modes}, key=lambda s: (s is None, s))
-    if subcase is None:
+    if subcase is None or (isinstance(subcase, str) and subcase == "lowest"):
         if len(subcases) > 1:
-            raise FEReadError(path, f"eigenvectors of {len(subcases)} subcases {subcases}; pass subcase= to "
-                              f"choose one")
+            def band(s):
+                f = [math.sqrt(max(m.eigenvalue, 0.0)) / (2 * math.pi) for m in modes if m.subcase == s]
+                return f"subcase {s}: {len(f)} modes, {min(f):.4g}-{max(f):.4g} Hz"
+
+            what = "; ".join(band(s) for s in subcases)
+            if subcase is None:
+                raise FEReadError(path, f"eigenvectors of {len(subcases)} subcases {subcases} ({what}); choose one: "
+                                  f"fem_import.read(path, subcase=N) in Python (the command line reads the lowest, "
+                                  f"subcase {subcases[0]}, with a warning)")
+            log.warning("%s: eigenvectors of %d subcases %s (%s); subcase %s is read. Another one: "
+                        "fem_import.read(path, subcase=N) or fem_import.read_with_geometry(path, subcase=N) in "
+                        "Python; the command line has no subcase option: write a punch file of that subcase alone",
+                        path, len(subcases), subcases, what, subcases[0])
+            modes = [m for m in modes if m.subcase == subcases[0]]
     else:
         if subcase not in subcases:
             raise FEReadError(path, f"subcase {subcase!r} is not in the file; it has subcases {subcases}")
@@ -307,7 +323,8 @@ def read_punch(path: str, *, subcase: int | None = None) -> FEModes:
                f"{ref_ids.size} grids from Nastran punch {path}; no geometry in the file",)
     return FEModes(node_ids=ref_ids, xyz=np.full((ref_ids.size, 3), np.nan), elements=(), freqs_hz=freqs,
                    shapes=shapes, modal_mass=np.ones(len(modes)), source=str(path), format="nastran-punch",
-                   units="SI (m, kg, s) assumed (a punch file does not state units)", history=history)
+                   units="SI (m, kg, s) assumed (a punch file does not state units)", history=history,
+                   mode_numbers=np.asarray(numbers, np.int64))
 
 
 register_format("nastran-punch", patterns=("*.pch", "*.punch"), sniff=sniff_punch, reader=read_punch,

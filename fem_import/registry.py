@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import fnmatch
+import inspect
 import logging
 import os
 from collections.abc import Callable
@@ -34,6 +35,11 @@ log = logging.getLogger("fem_import")
 
 #: Number of leading bytes handed to the sniffing functions.
 SNIFF_BYTES = 4096
+#: What the built-in formats are recognised by (for messages).
+HOW_RECOGNISED = ("a universal file starts with a '    -1' line and a dataset number; a Nastran punch file with a "
+                  "header card such as '$TITLE' or '$EIGENVECTOR'; a Nastran bulk deck with executive or case control "
+                  "(NASTRAN, ASSIGN, SOL, CEND, ...) or bulk entries (BEGIN BULK, PARAM, CORD2R, GRID, ...; a "
+                  ".bdf/.dat/.nas/.blk file with a GRID card in its first 4 kB).")
 
 
 @dataclass(frozen=True, eq=False)
@@ -69,24 +75,33 @@ class FormatInfo:
     patterns : tuple of str
         ``fnmatch`` patterns of usual file names (``"*.uff"``); they only
         order the sniffers, the content decides.
-    sniff : callable(bytes) -> bool
-        Gets the first :data:`SNIFF_BYTES` bytes; True if the content is of
-        this format.  Must not raise.
+    sniff : callable(bytes) -> bool or callable(bytes, str) -> bool
+        Gets the first :data:`SNIFF_BYTES` bytes (and, if it takes a second
+        argument, the file name, for content rules that hold only for some
+        file names); True if the content is of this format.  Must not raise.
     reader : callable(path, **kwargs) -> FEModes
     geometry : callable(path) -> Geometry, optional
         Reads nodes and elements only; None if the format carries no geometry.
     description : str
     aliases : tuple of str
         Other accepted names for ``format=``.
+    sniff_takes_name : bool
+        Whether ``sniff`` is called with the file name too (set by
+        :func:`register_format` from its signature).
     """
 
     name: str
     patterns: tuple[str, ...]
-    sniff: Callable[[bytes], bool]
+    sniff: Callable[..., bool]
     reader: Callable[..., FEModes]
     geometry: Callable[[str], Geometry] | None = None
     description: str = ""
     aliases: tuple[str, ...] = ()
+    sniff_takes_name: bool = False
+
+    def sniffs(self, head: bytes, name: str = "") -> bool:
+        """Whether the sniffing function accepts ``head`` (the first bytes of the file called ``name``)."""
+        return bool(self.sniff(head, name) if self.sniff_takes_name else self.sniff(head))
 
 
 _REGISTRY: dict[str, FormatInfo] = {}
@@ -110,8 +125,9 @@ def register_format(name: str, *, patterns, sniff, reader, geometry=None, descri
         Format name (stored lower case).
     patterns : sequence of str
         File-name patterns, e.g. ``("*.pch", "*.punch")``.
-    sniff : callable(bytes) -> bool
-        Content test on the first :data:`SNIFF_BYTES` bytes.
+    sniff : callable(bytes) -> bool or callable(bytes, str) -> bool
+        Content test on the first :data:`SNIFF_BYTES` bytes; a function of
+        two arguments also gets the file name.
     reader : callable(path, **kwargs) -> FEModes
     geometry : callable(path) -> Geometry, optional
     description : str, optional
@@ -132,7 +148,7 @@ def register_format(name: str, *, patterns, sniff, reader, geometry=None, descri
     if not key:
         raise ValueError("register_format: name must be a non-empty string")
     info = FormatInfo(key, tuple(str(p).lower() for p in patterns), sniff, reader, geometry, description,
-                      tuple(str(a).lower() for a in aliases))
+                      tuple(str(a).lower() for a in aliases), _takes_name(sniff))
     if not replace:
         taken = {n for i in _REGISTRY.values() for n in (i.name, *i.aliases)}
         clash = sorted(taken & {key, *info.aliases})
@@ -140,6 +156,16 @@ def register_format(name: str, *, patterns, sniff, reader, geometry=None, descri
             raise ValueError(f"register_format: format name(s) {clash} already registered; pass replace=True")
     _REGISTRY[key] = info
     return info
+
+
+def _takes_name(sniff) -> bool:
+    """Whether a sniffing function takes a second positional argument (the file name)."""
+    try:
+        params = list(inspect.signature(sniff).parameters.values())
+    except (TypeError, ValueError):
+        return False
+    positional = [p for p in params if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
+    return len(positional) >= 2 or any(p.kind == p.VAR_POSITIONAL for p in params)
 
 
 def unregister_format(name: str) -> FormatInfo:
@@ -220,7 +246,7 @@ def detect_format(path) -> FormatInfo:
     infos.sort(key=lambda i: not any(fnmatch.fnmatch(name, pat) for pat in i.patterns))
     for info in infos:
         try:
-            ok = bool(info.sniff(head))
+            ok = info.sniffs(head, p.name)
         except Exception as exc:  # a plugin's sniffer must not break detection of the others
             log.debug("sniffer of %s failed on %s: %r", info.name, p, exc)
             ok = False
@@ -229,8 +255,10 @@ def detect_format(path) -> FormatInfo:
             return info
     what = "empty file" if not head else "content not recognised"
     raise UnknownFormatError(
-        f"{p}: unknown or undetectable FE file format ({what}); supported formats: {_describe()}. "
-        f"Pass format= to force one.",
+        f"{p}: unknown or undetectable FE file format ({what}); supported formats: {_describe()}. The format is "
+        f"told from the content, whatever the file name: {HOW_RECOGNISED} To force a format, call "
+        f"fem_import.read(path, format=NAME) (geometry: fem_import.read_geometry(path, format=NAME)) in Python; the "
+        f"command line detects the format from the content only.",
         path=str(p), supported=tuple(_REGISTRY))
 
 
@@ -375,33 +403,62 @@ def read(path, format: str | None = None, *, geometry=None, **kwargs) -> FEModes
 COMPANION_SUFFIXES = (".bdf", ".dat", ".nas", ".blk", ".uff", ".unv")
 
 
-def find_geometry_companion(path) -> Path | None:
-    """A file beside ``path`` with the same stem that carries node coordinates (``.bdf``, ``.dat``, ``.nas``,
-    ``.blk``, ``.uff``, ``.unv``), or None."""
+def _companion_candidates(path) -> tuple[Path | None, list[tuple[Path, str]]]:
+    """The first companion file that carries geometry, and the candidates passed over with the reason."""
     p = Path(os.fspath(path))
+    rejected: list[tuple[Path, str]] = []
+    seen: set[Path] = set()
     for suffix in COMPANION_SUFFIXES:
         for cand in (p.with_suffix(suffix), p.with_suffix(suffix.upper())):
-            if cand != p and cand.is_file():
-                try:
-                    info = detect_format(cand)
-                except (UnknownFormatError, OSError):
-                    continue
-                if info.geometry is not None:
-                    return cand
-    return None
+            if cand == p or cand in seen or not cand.is_file():
+                continue
+            seen.add(cand)
+            try:
+                info = detect_format(cand)
+            except UnknownFormatError:
+                rejected.append((cand, "its content is not recognised as a Nastran bulk deck or a universal file ("
+                                       + HOW_RECOGNISED.rstrip(".") + ")"))
+                continue
+            except OSError as exc:
+                rejected.append((cand, f"it cannot be read ({exc})"))
+                continue
+            if info.geometry is None:
+                rejected.append((cand, f"it is recognised as {info.name!r}, a format that carries no node "
+                                       f"coordinates"))
+                continue
+            return cand, rejected
+    return None, rejected
 
 
-def read_with_geometry(path, geometry=None, *, option: str = "--geometry") -> tuple[FEModes, str]:
+def find_geometry_companion(path) -> Path | None:
+    """A file beside ``path`` with the same stem that carries node coordinates (``.bdf``, ``.dat``, ``.nas``,
+    ``.blk``, ``.uff``, ``.unv``), or None.
+
+    A candidate whose content is not recognised (or is of a format without
+    geometry) is passed over; :func:`read_with_geometry` names such files.
+    """
+    return _companion_candidates(path)[0]
+
+
+def read_with_geometry(path, geometry=None, *, option: str = "--geometry", subcase=None) -> tuple[FEModes, str]:
     """FE modes with node coordinates: from the file itself, from ``geometry``, or from a companion file.
+
+    This is how the command line reads an FE export (``--fem``, ``--geometry``).
 
     Parameters
     ----------
     path : str or os.PathLike
         The modes file (UFF, Nastran punch).
     geometry : str or os.PathLike, optional
-        A file with node coordinates (UFF 2411 or Nastran bulk GRID cards).
+        A file with node coordinates (UFF 2411 or Nastran bulk GRID cards)
+        and elements (UFF 2412, Nastran element cards).
     option : str
         How the geometry is asked for on the command line, for the message.
+    subcase : int, optional
+        Nastran punch file only: the subcase to read. None (default): the
+        only one, or the lowest with a WARNING naming the others when the
+        file holds several (:func:`fem_import.punch.read_punch` with
+        ``subcase="lowest"``; :func:`read` itself refuses to guess).
 
     Returns
     -------
@@ -412,25 +469,37 @@ def read_with_geometry(path, geometry=None, *, option: str = "--geometry") -> tu
     ------
     MissingCoordinatesError
         The modes file has no coordinates, none was given and no companion
-        file was found: the message says which file is needed.
+        file was found: the message says which file is needed, and names a
+        companion candidate that exists but was not recognised.
     """
     from .errors import MissingCoordinatesError
 
     p = Path(os.fspath(path))
+    info = detect_format(p)
+    kwargs = {}
+    if info.name == "nastran-punch":
+        kwargs["subcase"] = "lowest" if subcase is None else subcase
+    elif subcase is not None:
+        raise UnknownFormatError(f"{p}: subcase={subcase!r} applies to Nastran punch files; this file is "
+                                 f"{info.name!r}", path=str(p), supported=tuple(_REGISTRY))
     if geometry is not None:
-        fe = read(p, geometry=geometry)
+        fe = read(p, info.name, geometry=geometry, **kwargs)
         return fe, f"node coordinates from {geometry}"
-    fe = read(p)
+    fe = read(p, info.name, **kwargs)
     if fe.has_coordinates:
         return fe, f"node coordinates from {p.name}"
-    companion = find_geometry_companion(p)
+    companion, rejected = _companion_candidates(p)
     if companion is not None:
         log.info("%s has no node coordinates; using those of the companion file %s", p, companion)
         return merge_geometry(fe, companion), (f"node coordinates from the companion file {companion} "
                                                f"(pass {option} to choose another)")
+    names = "/".join(p.with_suffix(s).name for s in COMPANION_SUFFIXES[:3]) + f"/{p.with_suffix('.uff').name}"
+    if rejected:
+        found = "; ".join(f"{c.name} exists but is not used: {why}" for c, why in rejected)
+        tail = f"a companion file {names} would be used if it were recognised: {found}"
+    else:
+        tail = f"no companion file {names} was found next to it"
     raise MissingCoordinatesError(
         f"{p} ({fe.format or 'FE modes'}) holds no node coordinates, and the sensors and points must be placed on "
         f"the FE nodes: give {option} FILE (a universal file with dataset 2411, or a Nastran bulk data file with "
-        f"GRID cards, e.g. {p.with_suffix('.bdf').name}); no companion file "
-        f"{'/'.join(p.with_suffix(s).name for s in COMPANION_SUFFIXES[:3])}/{p.with_suffix('.uff').name} was found "
-        f"next to it")
+        f"GRID cards, e.g. {p.with_suffix('.bdf').name}); {tail}")

@@ -22,12 +22,19 @@ Datasets used (layouts: UC-SDRL universal file descriptions, as printed by
   a label that no 2420 defines is logged and taken as global; a label that
   2420 defines twice differently is refused (an identical repeat is accepted).
 * **2412** elements: label, FE descriptor id, physical property and node
-  labels.  pyuff reads only the first line of node labels (8 labels), which
-  covers beams, triangles, quadrilaterals and masses; an element with more
-  nodes raises :class:`FEReadError` naming it.
+  labels, read here (not by pyuff, which reads one line of node labels and
+  splits fields on blanks, so that an element with more than 8 nodes and
+  two adjacent 10-digit labels could not be read): Record 1 in 10-column
+  fields (6I10), the beam record (3I10) for descriptors 11 and 21-24, then
+  the node labels, 8 per line (``ceil(n / 8)`` lines of 8I10; one long line
+  is accepted too). Records written with blank-separated fields are read
+  when they hold exactly the expected number of integers. An element whose
+  records are cut short or misaligned, that lists a node twice or uses a
+  node the node dataset lacks, is refused naming it and its line.
 * **55** data at nodes, one dataset per mode: analysis type 2 (normal mode),
   real data, 3 values per node (data characteristic 2: translations) or 6
-  (data characteristic 3: translations and rotations).  Record 8 gives the
+  (data characteristic 3: translations and rotations).  Record 7 gives the
+  mode number (kept as :attr:`FEModes.mode_numbers`), record 8 the
   frequency [Hz] and the modal mass.  Shapes with a modal mass ``m`` other
   than 1 are scaled to unit modal mass, ``phi / sqrt(m)``; a modal mass of 0
   (pyuff's default when writing) is taken as "already mass-normalised" with a
@@ -44,15 +51,25 @@ Datasets used (layouts: UC-SDRL universal file descriptions, as printed by
   data, static or transient results) are not mode shapes and are left out
   (logged); complex modes (analysis types 3 and 7) are refused as in 55.
 
-Everything that pyuff parses is parsed by pyuff; this module only checks the
+Everything else that pyuff parses is parsed by pyuff; this module checks the
 dataset framing (so that a truncated last dataset is reported instead of
 silently dropped, as pyuff's block pairing would do) and validates what pyuff
 returns (consistent lengths, integral labels, finite values, node sets).
-The one exception is the data records of 2414: pyuff 2.5 reads one line of
-values per node, but double-precision exports write a 6-DOF node on two
-lines (``3D25.16``), so these records are read here, node line by node line,
+Besides 2412, the data records of 2414 are read here: pyuff 2.5 reads one
+line of values per node, but double-precision exports write a 6-DOF node on
+two lines (``3D25.16``), so these records are read node line by node line,
 with the values counted across lines.
+
+Layout quirks of real exports are evened out before pyuff reads the file
+(:func:`fem_import.uff_text.prepare_for_pyuff`, on a temporary copy): blanks
+after a ``    -1`` delimiter or at the end of a dataset 55 line (records
+padded to 80 columns), ``D`` exponents and Fortran's 3-digit exponents
+without a letter (``0.12000-100``, E13.5 of 1.2e-101) in datasets 55 and 58.
 Shapes are returned in the node order of dataset 2411 (file order).
+
+Mode numbers: the file's own (record 7 of 55, record 10 of 2414) when every
+mode has a positive one (they are unique: a number given twice is refused);
+when some or all are 0 ("not numbered") the modes are numbered by position.
 """
 
 from __future__ import annotations
@@ -66,7 +83,7 @@ import numpy as np
 from .errors import FEReadError
 from .modes import Element, FEModes
 from .registry import Geometry, register_format
-from .uff_text import DatasetSpan, fortran_field_problem, prepare_for_pyuff, unreadable_field
+from .uff_text import DatasetSpan, fortran_field_problem, fortran_float, prepare_for_pyuff, unreadable_field
 
 __all__ = ["read_uff", "read_uff_geometry", "sniff_uff"]
 
@@ -75,9 +92,8 @@ log = logging.getLogger("fem_import")
 _SUPPORTED = (15, 164, 2411, 2412, 55, 2414)
 #: 2414 result types read as mode shapes: displacement, and the 'unknown' 3- and 6-DOF vectors
 _SHAPE_RESULTS = {8: "displacement", 95: "unknown 3-DOF vector", 96: "unknown 6-DOF vector"}
-#: FE descriptors pyuff reads with an extra beam record (Record 2 of 2412).
+#: FE descriptors with the beam record (Record 2 of 2412: orientation node, fore and aft cross sections).
 _BEAM_DESCRIPTORS = frozenset({11, 21, 22, 23, 24})
-_PYUFF_MAX_ELEMENT_NODES = 8
 _DELIM = b"    -1"
 
 
@@ -94,17 +110,25 @@ def sniff_uff(head: bytes) -> bool:
 
 
 def _delimiters(data: bytes) -> list[int]:
-    """Offsets of the ``    -1`` delimiters, with exactly pyuff's rule (``UFF.refresh``)."""
+    """Offsets of the ``    -1`` delimiters: ``    -1`` followed by blanks only up to the end of its line.
+
+    pyuff's rule (``UFF.refresh``) accepts an end of line right after the
+    ``-1`` or exactly 74 blanks; a delimiter with other trailing blanks (an
+    editor's, an exporter's) is one too, and
+    :func:`~fem_import.uff_text.prepare_for_pyuff` strips those blanks before
+    pyuff reads the file, so that both count the same datasets.
+    """
     out = []
     n = len(data)
     ind = -1
-    blanks = b" " * 74
     while True:
         ind = data.find(_DELIM, ind + 1)
         if ind == -1:
             return out
-        if ind + 6 == n or (ind + 6 < n and data[ind + 6] in (10, 13)) or \
-                (ind + 80 < n and data[ind + 6:ind + 80] == blanks):
+        k = ind + 6
+        while k < n and data[k] in (32, 9):
+            k += 1
+        if k == n or data[k] in (10, 13):
             out.append(ind)
 
 
@@ -135,24 +159,86 @@ def _check_framing(path: str, data: bytes) -> list[int]:
     return [(line_of(s), s, e) for s, e in zip(starts, ends)]
 
 
-def _first_long_element(block: bytes) -> tuple[int, int, int] | None:
-    """(element, descriptor, node count) of the first 2412 element with more than 8 nodes, if any.
+def _ints(text: str, n: int | None) -> list[int] | None:
+    """The integers of a record in 10-column fields (``n`` of them, or as many as the line holds).
 
-    Only used to explain a pyuff failure: walks the records by the dataset's
-    layout (Record 1 with 6 integers, the beam record for descriptors 11 and
-    21-24, then ceil(n / 8) lines of node labels).
+    Fixed columns first (two adjacent 10-digit labels have no blank between
+    them); a record written with blank-separated fields is read when it
+    holds exactly ``n`` integers. None when neither reading fits.
     """
-    lines = block.decode("latin-1").splitlines()[2:]
-    i = 0
-    while i < len(lines):
-        rec = lines[i].split()
-        if len(rec) != 6 or not all(re.fullmatch(r"-?[0-9]+", t) for t in rec):
-            return None
-        eid, desc, nn = int(rec[0]), int(rec[1]), int(rec[5])
-        if nn > _PYUFF_MAX_ELEMENT_NODES:
-            return eid, desc, nn
-        i += 1 + (desc in _BEAM_DESCRIPTORS) + max(1, -(-nn // 8))
+    t = text.rstrip()
+    count = n if n is not None else -(-len(t) // 10)
+    fields = [t[10 * k:10 * k + 10] for k in range(count)]
+    try:
+        vals = [int(f) for f in fields]
+        if not t[10 * count:].strip():
+            return vals
+    except ValueError:
+        pass
+    toks = t.split()
+    if (n is None or len(toks) == n) and all(re.fullmatch(r"[+-]?\d+", tok) for tok in toks) and toks:
+        return [int(tok) for tok in toks]
     return None
+
+
+def _elements_2412(path, block: bytes, line: int, known: set[int] | None) -> list[Element]:
+    """Dataset 2412 (``block`` from its opening delimiter, at ``line``) as elements (module docstring)."""
+    lines = block.decode("latin-1").splitlines()
+    out: list[Element] = []
+    i = 2
+    while i < len(lines):
+        if not lines[i].strip():
+            i += 1
+            continue
+        at = line + i
+        rec = _ints(lines[i], 6)
+        if rec is None:
+            raise FEReadError(path, f"record 1 of an element must hold 6 integers in 10-column fields (label, FE "
+                              f"descriptor, physical property, material property, colour, number of nodes), got "
+                              f"{lines[i].rstrip()!r}: the records are misaligned or corrupt", dataset="2412",
+                              line=at)
+        eid, desc, prop, _, _, nn = rec
+        who = f"element {eid} (FE descriptor {desc})"
+        i += 1
+        if eid <= 0:
+            raise FEReadError(path, f"{who}: element labels must be positive", dataset="2412", line=at)
+        if nn < 1:
+            raise FEReadError(path, f"{who} declares {nn} nodes; an element has at least one", dataset="2412",
+                              line=at)
+        if desc in _BEAM_DESCRIPTORS:
+            beam = _ints(lines[i], 3) if i < len(lines) else None
+            if beam is None:
+                got = repr(lines[i].rstrip()) if i < len(lines) else "the end of the dataset"
+                raise FEReadError(path, f"{who} is a beam: its record 1 is followed by the beam record (orientation "
+                                  f"node, fore and aft cross-section numbers, 3I10), got {got}", dataset="2412",
+                                  line=line + i)
+            i += 1
+        nodes: list[int] = []
+        while len(nodes) < nn:
+            if i >= len(lines) or not lines[i].strip():
+                raise FEReadError(path, f"{who} declares {nn} nodes but lists {len(nodes)}: the dataset ends, the "
+                                  f"record is truncated", dataset="2412", line=at)
+            labels = _ints(lines[i], None)
+            if labels is None or len(nodes) + len(labels) > nn:
+                raise FEReadError(path, f"{who} declares {nn} nodes, but the line of node labels "
+                                  f"{lines[i].rstrip()!r} does not hold the {nn - len(nodes)} label(s) left (8 per "
+                                  f"line, 10 columns each): the record is truncated or misaligned", dataset="2412",
+                                  line=line + i)
+            nodes += labels
+            i += 1
+        if any(n <= 0 for n in nodes):
+            raise FEReadError(path, f"{who} has non-positive node labels {nodes}", dataset="2412", line=at)
+        twice = sorted({n for n in nodes if nodes.count(n) > 1})
+        if twice:
+            raise FEReadError(path, f"{who} has {nn} nodes and lists node(s) {twice[:10]} more than once: an "
+                              f"element's nodes are distinct; the record is corrupt", dataset="2412", line=at)
+        if known is not None:
+            unknown = [n for n in nodes if n not in known]
+            if unknown:
+                raise FEReadError(path, f"{who} uses node(s) {unknown[:10]} that are not in the node dataset "
+                                  f"(2411/15)", dataset="2412", line=at)
+        out.append(Element(int(eid), int(desc), tuple(int(n) for n in nodes), int(prop)))
+    return out
 
 
 # --------------------------------------------------------------------------
@@ -198,6 +284,7 @@ class _Parts:
         self.length_factor = 1.0
         self.mass_factor = 1.0
         self.units = "SI (m, kg, s)"
+        self.units_given = False
         self.modes: list[dict] = []
         self.history: list[str] = []
 
@@ -244,7 +331,7 @@ def _read_parts_with(path: str, readable: str, data: bytes, frames, *, want_mode
 
     parts = _Parts()
     node_chunks: list[tuple[np.ndarray, np.ndarray, int, np.ndarray]] = []
-    element_sets: list[tuple[dict, int]] = []
+    element_sets: list[tuple[bytes, int]] = []
     systems: dict[int, tuple[int, str, np.ndarray]] = {}
     system_lines: dict[int, int] = {}  # label -> line of the 2420 dataset that defines it
     units_line: int | None = None      # line of the first 164 (the one in force) ...
@@ -265,25 +352,18 @@ def _read_parts_with(path: str, readable: str, data: bytes, frames, *, want_mode
             else:
                 parts.modes.append(md)
             continue
+        if kind == 2412:  # read here, not by pyuff (module docstring), once the nodes are known
+            element_sets.append((data[frames[k][1]:frames[k][2]], line))
+            continue
         try:
             dset = uf.read_sets(setn=k)
         except Exception as exc:
-            hint = ""
-            if kind == 2412:
-                long = _first_long_element(data[frames[k][1]:frames[k][2]])
-                if long is not None:
-                    raise FEReadError(path, f"element {long[0]} (FE descriptor {long[1]}) has {long[2]} nodes; "
-                                      f"pyuff reads only the first line of node labels, so elements with more than "
-                                      f"{_PYUFF_MAX_ELEMENT_NODES} nodes are not supported", dataset="2412",
-                                      line=line) from exc
-                hint = (" (pyuff reads at most 8 node labels per element and expects the beam record for "
-                        "descriptors 11, 21-24)")
             bad = unreadable_field(data, _spans(data, frames)[k]) if kind == 55 else None
             if bad is not None:
                 raise FEReadError(path, f"record {bad.record}: {bad.field!r}: {bad.cause}",
                                   dataset=f"{bad.dataset} (type 55, mode {len(parts.modes) + 1})",
                                   line=bad.line) from exc
-            raise FEReadError(path, f"pyuff could not read this dataset: {exc}{hint}", dataset=str(kind),
+            raise FEReadError(path, f"pyuff could not read this dataset: {exc}", dataset=str(kind),
                               line=line) from exc
         if not isinstance(dset, dict):
             raise FEReadError(path, f"pyuff returned {type(dset).__name__} instead of a dataset dict",
@@ -294,6 +374,7 @@ def _read_parts_with(path: str, readable: str, data: bytes, frames, *, want_mode
                     f"length factor {factors[0]:g}, mass factor {factors[1]:g}")
             if units_line is None:
                 parts.length_factor, parts.mass_factor, parts.units = factors
+                parts.units_given = True
                 units_line, units_said = line, said
             elif not (math.isclose(factors[0], parts.length_factor, rel_tol=1e-12)
                       and math.isclose(factors[1], parts.mass_factor, rel_tol=1e-12)):
@@ -304,8 +385,6 @@ def _read_parts_with(path: str, readable: str, data: bytes, frames, *, want_mode
                                   dataset="164", line=line)
         elif kind in (2411, 15):
             node_chunks.append(_nodes(path, dset, kind, line))
-        elif kind == 2412:
-            element_sets.append((dset, line))
         elif kind == 2420:
             _add_systems(path, systems, system_lines, _coordinate_systems(path, dset, line), line)
         else:
@@ -338,8 +417,8 @@ def _read_parts_with(path: str, readable: str, data: bytes, frames, *, want_mode
             parts.history.append(f"coordinates divided by the file's length factor {parts.length_factor:g} (to m)")
     known = set(parts.node_ids.tolist()) if parts.node_ids is not None else None
     seen: set[int] = set()
-    for dset, line in element_sets:
-        for el in _elements(path, dset, line, known):
+    for block, line in element_sets:
+        for el in _elements_2412(path, block, line, known):
             if el.element_id in seen:
                 raise FEReadError(path, f"element label {el.element_id} is defined more than once",
                                   dataset="2412", line=line)
@@ -476,39 +555,6 @@ def _check_node_systems(path, node_ids, node_cs, systems, line, scale: float) ->
                     "system", path, undefined)
 
 
-def _elements(path, dset, line, known: set[int] | None) -> list[Element]:
-    out = []
-    for desc, records in dset.items():
-        if not isinstance(desc, (int, np.integer)):
-            continue  # pyuff's legacy 'triangle' / 'quad' summaries
-        for rec in records:
-            try:
-                eid = int(rec["element_nums"])
-                nn = int(rec["num_nodes"])
-                nodes = tuple(int(n) for n in rec["nodes_nums"])
-                prop = int(rec.get("phys_table", 0))
-            except (KeyError, TypeError, ValueError) as exc:
-                raise FEReadError(path, f"pyuff returned an incomplete element record ({exc!r})",
-                                  dataset="2412", line=line) from exc
-            if nn > _PYUFF_MAX_ELEMENT_NODES:
-                raise FEReadError(path, f"element {eid} (FE descriptor {desc}) has {nn} nodes; pyuff reads only "
-                                  f"the first line of node labels ({_PYUFF_MAX_ELEMENT_NODES} labels), so "
-                                  f"elements with more than {_PYUFF_MAX_ELEMENT_NODES} nodes are not supported",
-                                  dataset="2412", line=line)
-            if nn != len(nodes) or nn < 1:
-                raise FEReadError(path, f"element {eid} (FE descriptor {desc}) declares {nn} nodes but lists "
-                                  f"{len(nodes)}: the record is truncated or corrupt", dataset="2412", line=line)
-            if eid <= 0 or any(n <= 0 for n in nodes):
-                raise FEReadError(path, f"element {eid} has non-positive labels {nodes}", dataset="2412", line=line)
-            if known is not None:
-                unknown = [n for n in nodes if n not in known]
-                if unknown:
-                    raise FEReadError(path, f"element {eid} (FE descriptor {desc}) uses node(s) {unknown} that "
-                                      f"are not in the node dataset (2411/15)", dataset="2412", line=line)
-            out.append(Element(eid, int(desc), nodes, prop))
-    return out
-
-
 def _check_mode_numbers(path, modes: list[dict]) -> None:
     """Refuse a mode number that two datasets (55 or 2414) give.
 
@@ -601,7 +647,7 @@ def _shape(path, where, line, k, mode_n, nodes, vals, freq, mm, spec) -> dict:
 def _numbers(path, text: str, n_min: int, kind, what: str, dataset: str, line: int) -> list:
     """At least ``n_min`` numbers of type ``kind`` from a free-format record (Fortran ``D`` exponents read)."""
     try:
-        vals = [kind(tok.replace("D", "E").replace("d", "e")) if kind is float else int(tok) for tok in text.split()]
+        vals = [fortran_float(tok) if kind is float else int(tok) for tok in text.split()]
     except ValueError:
         raise FEReadError(path, f"{what}: {text.strip()!r} holds a field that is not "
                           f"{'a number' if kind is float else 'an integer'}", dataset=dataset, line=line) from None
@@ -677,7 +723,8 @@ def read_uff_geometry(path: str) -> Geometry:
     parts = _read_parts(path, want_modes=False)
     if parts.node_ids is None:
         raise FEReadError(path, "no node dataset (2411 or 15): the file carries no geometry")
-    return Geometry(parts.node_ids, parts.xyz, tuple(parts.elements), str(path), parts.units)
+    units = parts.units if parts.units_given else f"{parts.units} assumed (no units dataset 164)"
+    return Geometry(parts.node_ids, parts.xyz, tuple(parts.elements), str(path), units)
 
 
 def read_uff(path: str) -> FEModes:
@@ -750,6 +797,9 @@ def read_uff(path: str) -> FEModes:
         xyz = np.full((node_ids.size, 3), np.nan)
         elements = []
 
+    numbers = _mode_numbers(path, parts.modes)
+    if not parts.units_given:
+        history.append("no units dataset 164: the file's units are taken as SI (m, kg, s)")
     shapes = np.empty((len(parts.modes), node_ids.size, n_dof))
     for j, md in enumerate(parts.modes):
         order = np.argsort(md["ids"], kind="stable")
@@ -786,7 +836,24 @@ def read_uff(path: str) -> FEModes:
     history.insert(0, f"read {len(parts.modes)} modes ({n_dof} DOF/node, {node_ids.size} nodes) from UFF {path}")
     return FEModes(node_ids=node_ids, xyz=xyz, elements=tuple(elements), freqs_hz=freqs, shapes=shapes,
                    modal_mass=np.ones(freqs.size), source=str(path), format="uff", units=parts.units,
-                   history=tuple(history))
+                   history=tuple(history), mode_numbers=numbers)
+
+
+def _mode_numbers(path, modes: list[dict]) -> np.ndarray:
+    """The file's mode numbers when every mode has a positive one (unique: :func:`_check_mode_numbers`),
+    else the positions 1..m (logged)."""
+    given = []
+    for md in modes:
+        try:
+            given.append(int(md["mode_n"]))
+        except (TypeError, ValueError, OverflowError):
+            given.append(0)
+    if all(n > 0 for n in given):
+        return np.asarray(given, np.int64)
+    if any(n > 0 for n in given):
+        log.info("%s: %d of %d modes have no mode number (0); all modes are numbered by their position", path,
+                 sum(n <= 0 for n in given), len(given))
+    return np.arange(1, len(modes) + 1, dtype=np.int64)
 
 
 register_format("uff", patterns=("*.uff", "*.unv", "*.uf"), sniff=sniff_uff, reader=read_uff,
