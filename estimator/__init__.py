@@ -27,7 +27,7 @@ field effects (issue 15).
 
 from estimator.config import EstimatorConfig, parse_models
 from estimator.errors import (ChannelError, ConfigurationError, EstimatorError, NoValidDataError, OdometryError,
-                              RunFileError, SensorTableError, UnknownFormatError, WheelbaseError)
+                              RunFileError, SensorTableError, UnknownFormatError, WheelbaseError, WheelsetModelError)
 from estimator.io import read_line, read_run, read_sensors, read_trolley
 from estimator.orientation import orientation
 from estimator.qc import check_run
@@ -39,7 +39,7 @@ from estimator.workflow import FieldModel, estimate_run, prepare
 __all__ = [
     "EstimatorConfig", "parse_models",
     "ChannelError", "ConfigurationError", "EstimatorError", "NoValidDataError", "OdometryError", "RunFileError",
-    "SensorTableError", "UnknownFormatError", "WheelbaseError",
+    "SensorTableError", "UnknownFormatError", "WheelbaseError", "WheelsetModelError",
     "read_line", "read_run", "read_sensors", "read_trolley",
     "orientation", "check_run", "odometry_track",
     "FieldEstimate", "ProfileEstimate",

@@ -12,6 +12,7 @@ __all__ = [
     "ConfigurationError",
     "NoValidDataError",
     "WheelbaseError",
+    "WheelsetModelError",
 ]
 
 
@@ -50,3 +51,8 @@ class WheelbaseError(ConfigurationError):
 
 class NoValidDataError(EstimatorError):
     """Quality control left nothing to estimate from (every sample masked); names the run and the reasons."""
+
+
+class WheelsetModelError(EstimatorError):
+    """A wheelset model the field estimate cannot use as it stands: points missing, not in the railway frame, or
+    not the size of a railway wheelset in metres (names the model, what was found and the likely unit)."""

@@ -14,7 +14,9 @@ Files written into a folder (the CLI stages them: temporary folder, then rename)
 ``qc.csv``, ``odometry.csv`` quality-control findings, balise resets
 ``conditioning.csv``        condition number and regularisation per band, wheelset, model
 ``comparison.csv``          (with a reference) band errors per wheelset, model, rail
-``summary.json``            run, options, wheelbase, circumferences, sleeper passing removed, masked share, timings, history
+``summary.json``            run, options, wheelbase, circumferences, sleeper passing removed, masked share, timings,
+                            history; with a reference: its file, rails compared, spans and what was doubtful
+                            about it (``reference.notes``: rows left out, level, no overlap with the run)
 ``figures/*.png``           the report's figures
 ``report.html``             the report (:mod:`estimator.report`)
 =========================  ======================================================================
@@ -23,17 +25,20 @@ Files written into a folder (the CLI stages them: temporary folder, then rename)
 from __future__ import annotations
 
 import json
+import logging
 import math
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from estimator.reference import ReferenceIndexes, compare_bands, compare_spectra, models_ranking
+from estimator.reference import ReferenceIndexes, compare_bands, compare_spectra, models_ranking, reference_overlap
 from estimator.report import write_report
 from estimator.results import FieldEstimate
 
 __all__ = ["write_estimate", "lead_trail_agreement", "summary"]
+
+log = logging.getLogger("estimator")
 
 
 def summary(e: FieldEstimate) -> dict:
@@ -135,7 +140,12 @@ def write_estimate(e: FieldEstimate, folder, *, reference: ReferenceIndexes | No
         spans = [(name, (a, b)) for name, a, b in e.stretches if name.startswith("curve")] or \
                 [("run", (float(min(p.chainage_m[0] for p in e.profiles.values())),
                           float(max(p.chainage_m[-1] for p in e.profiles.values()))))]
+    reference_notes: list[str] = []
     if reference is not None:
+        reference_notes = list(getattr(reference, "notes", ()))
+        for note in reference_overlap(e, reference):
+            log.warning("%s", note)
+            reference_notes.append(note)
         comparison = pd.concat([compare_bands(e, reference, s).assign(stretch=n) for n, s in spans], ignore_index=True)
         ranking = models_ranking(comparison[comparison["role"] == "leading"]) if not comparison.empty else None
         spectra_cmp = pd.concat([compare_spectra(e, reference, s).assign(stretch=n) for n, s in spans],
@@ -148,7 +158,15 @@ def write_estimate(e: FieldEstimate, folder, *, reference: ReferenceIndexes | No
         files[name] = out / f"{name}.csv"
         df.to_csv(files[name], index=False)
     files["summary"] = out / "summary.json"
-    files["summary"].write_text(json.dumps(summary(e), indent=1, default=str), encoding="utf-8")
+    summ = summary(e)
+    if reference is not None:
+        summ["reference"] = {"source": getattr(reference, "source", "reference"),
+                             "rails_compared": [r for r in sorted(reference.indexes)
+                                                if comparison is not None and not comparison.empty
+                                                and (comparison.loc[comparison["rail"] == r, "n_windows"] > 0).any()],
+                             "spans_m": {r: list(reference.span(r)) for r in sorted(reference.indexes)},
+                             "notes": reference_notes}
+    files["summary"].write_text(json.dumps(summ, indent=1, default=str), encoding="utf-8")
     figs: dict[str, Path] = {}
     if figures:
         import matplotlib
@@ -180,5 +198,6 @@ def write_estimate(e: FieldEstimate, folder, *, reference: ReferenceIndexes | No
         files.update({f"figure_{k}": v for k, v in figs.items()})
     if report:
         files["report"] = write_report(e, out / "report.html", figures=figs, comparison=comparison, ranking=ranking,
-                                       spectra_comparison=spectra_cmp, lead_trail=lt)
+                                       spectra_comparison=spectra_cmp, lead_trail=lt,
+                                       reference_notes=reference_notes if reference is not None else None)
     return files

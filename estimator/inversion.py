@@ -67,12 +67,14 @@ import pandas as pd
 from scipy import fft as sfft
 
 from ema.frf import FrequencyResponse
-from estimator.errors import ChannelError, ConfigurationError
+from estimator.errors import ChannelError, ConfigurationError, SensorTableError, WheelsetModelError
 from receptance.dofs import DofError, Point
 from receptance.frame import check_railway_frame
 from receptance.transfer import full_vertical_transfer, half_wheelset_transfer, vertical_lateral_transfer
 
-__all__ = ["WheelsetTransfer", "sensor_model", "model_channels", "regularised_inverse", "tikhonov_inverse",
+__all__ = ["WheelsetTransfer", "sensor_model", "check_wheelset_geometry", "check_sensor_mounting",
+           "AXLEBOX_SPACING_RANGE_M", "ROLLING_RADIUS_RANGE_M", "SENSOR_AXLEBOX_TOLERANCE_M", "model_channels",
+           "regularised_inverse", "tikhonov_inverse",
            "band_window",
            "wheelset_transfer", "TimeIrregularity", "invert", "cubic_sample", "sample_many", "UPSAMPLE",
            "condition_by_band", "rail_coupling"]
@@ -86,6 +88,135 @@ EDGE_ENERGY = 0.999
 #: bounds of that edge [s] (lightly damped antiresonances give long tails; beyond 1 s they hold < 0.1 %)
 EDGE_BOUNDS_S = (0.05, 1.0)
 _AXIS = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
+
+#: Distance between the two axlebox centres of a railway wheelset [m]: about 2.0 m on standard gauge (1435 mm gauge,
+#: journals outside the wheels), 1.4-1.6 m on metre-gauge trams with inside bearings, up to ~2.5-2.8 m on broad
+#: gauge; outside 1-3.5 m the points are not a wheelset's in metres.
+AXLEBOX_SPACING_RANGE_M = (1.0, 3.5)
+#: Distance of a contact point from the axle's axis (the rolling radius) [m]: tram and metro wheels are 0.3-0.45 m,
+#: mainline up to ~0.6 m, small-wheeled low-floor vehicles ~0.15-0.3 m; outside 0.15-1.0 m it is no railway wheel
+#: in metres.
+ROLLING_RADIUS_RANGE_M = (0.15, 1.0)
+#: An accelerometer on an axlebox housing sits within this distance [m] of the axlebox centre: the housing's own
+#: size (a bearing of ~0.25-0.3 m outer diameter in a housing ~0.4-0.5 m long), with sensors on its top, front or
+#: end cover. A mounting point further from its side's axlebox is not on that axlebox (x and y swapped, a sensor
+#: near the axle's middle).
+SENSOR_AXLEBOX_TOLERANCE_M = 0.3
+_LENGTH_UNITS = ((1e-3, "mm"), (1e-2, "cm"), (0.0254, "inches"), (1e3, "km"))
+
+
+def _unit_hint(value_m: float, lo: float, hi: float) -> str:
+    """`` (likely mm: 0.41 m)`` when a length read in another unit falls into ``[lo, hi]``, else empty."""
+    for f, u in _LENGTH_UNITS:
+        if lo <= value_m * f <= hi:
+            return f" (likely in {u}: {value_m * f:.4g} m)"
+    return ""
+
+
+def _wheelset_points(model, what: str):
+    pts = getattr(model, "points", {})
+    missing = [p for p in ("axlebox_L", "axlebox_R", "contact_L", "contact_R") if p not in pts]
+    if missing:
+        raise WheelsetModelError(f"{what} lacks point(s) {missing}; a field estimate needs the contact points and "
+                                 f"axleboxes (points.csv of the lab: contact_L, axlebox_L, contact_R, axlebox_R); it "
+                                 f"has {sorted(pts)}")
+    no_xyz = [p for p in ("axlebox_L", "axlebox_R", "contact_L", "contact_R") if pts[p].xyz is None]
+    if no_xyz:
+        raise WheelsetModelError(f"{what}: point(s) {no_xyz} need coordinates (x, y, z) to place the accelerometers "
+                                 "and the contacts")
+    return pts
+
+
+def check_wheelset_geometry(model, what: str = "the wheelset model") -> dict[str, float]:
+    """Refuse a model whose geometry is not a railway wheelset's in metres; returns what was measured.
+
+    From the model's points: the axlebox spacing (within :data:`AXLEBOX_SPACING_RANGE_M`) and each contact point's
+    distance from the axle's axis, the line through the two axleboxes (the rolling radius, within
+    :data:`ROLLING_RADIUS_RANGE_M`); and each of those points' FE node within a quarter of the axlebox spacing of
+    the point (the FE coordinates in the points' unit: a model whose node coordinates are in mm while its points
+    are in m places every sensor metres off its node).
+
+    Raises
+    ------
+    WheelsetModelError
+        Naming ``what``, the value found, the range and the likely unit.
+    """
+    pts = _wheelset_points(model, what)
+    axl, axr = (np.asarray(pts[n].xyz, float) for n in ("axlebox_L", "axlebox_R"))
+    spacing = float(np.linalg.norm(axr - axl))
+    lo, hi = AXLEBOX_SPACING_RANGE_M
+    if not lo <= spacing <= hi:
+        raise WheelsetModelError(f"{what}: the axleboxes are {spacing:.4g} m apart (axlebox_L {tuple(axl)}, "
+                                 f"axlebox_R {tuple(axr)}); a railway wheelset's are {lo:g}-{hi:g} m apart"
+                                 f"{_unit_hint(spacing, lo, hi)}; the model's coordinates must be in metres")
+    u = (axr - axl) / spacing
+    out = {"axlebox_spacing_m": spacing}
+    lo, hi = ROLLING_RADIUS_RANGE_M
+    for n in ("contact_L", "contact_R"):
+        c = np.asarray(pts[n].xyz, float) - axl
+        r = float(np.linalg.norm(c - (c @ u) * u))
+        if not lo <= r <= hi:
+            raise WheelsetModelError(f"{what}: point {n} {tuple(pts[n].xyz)} is {r:.4g} m from the axle's axis (the "
+                                     f"line through the axleboxes): a rolling radius of {r:.4g} m, while railway "
+                                     f"wheels have {lo:g}-{hi:g} m{_unit_hint(r, lo, hi)}; the model's coordinates "
+                                     "must be in metres")
+        out[f"rolling_radius_{n[-1]}_m"] = r
+    fe = getattr(model, "fe", None)
+    if fe is not None and getattr(fe, "node_ids", None) is not None:
+        ids = np.asarray(fe.node_ids)
+        xyz = np.asarray(fe.xyz, float)
+        for n in ("axlebox_L", "axlebox_R", "contact_L", "contact_R"):
+            node = pts[n].fe_node
+            if node is None:
+                continue
+            k = np.flatnonzero(ids == node)
+            if not k.size:
+                continue  # (the model's own checks name a missing node)
+            d = float(np.linalg.norm(xyz[k[0]] - np.asarray(pts[n].xyz, float)))
+            if d > 0.25 * spacing:
+                ratio = float(np.linalg.norm(xyz[k[0]])) / max(float(np.linalg.norm(pts[n].xyz)), 1e-9)
+                unit = next((f"; the FE node coordinates look like {un} ({ratio:.3g} times the point's)"
+                             for f, un in _LENGTH_UNITS if abs(ratio * f - 1) < 0.2), "")
+                raise WheelsetModelError(f"{what}: point {n} {tuple(pts[n].xyz)} m is {d:.4g} m from its FE node "
+                                         f"{node} at {tuple(float(v) for v in xyz[k[0]])} (more than a quarter of "
+                                         f"the {spacing:.3g} m axlebox spacing){unit}; the FE coordinates "
+                                         f"({getattr(fe, 'units', '') or 'units not stated'}) and the points must be "
+                                         "in metres")
+    return out
+
+
+def check_sensor_mounting(model, channels: pd.DataFrame, source: str = "<sensor table>") -> None:
+    """Refuse an accelerometer row whose mounting point is not on its side's axlebox.
+
+    The sensor table's ``x, y, z`` are relative to the wheelset's centre (the midpoint of the model's axleboxes);
+    each acceleration row must lie within :data:`SENSOR_AXLEBOX_TOLERANCE_M` of its side's axlebox (``axlebox_L``
+    or ``axlebox_R``, relative to that centre). Rows are numbered as in the file (header = row 1).
+
+    Raises
+    ------
+    SensorTableError
+        Naming the row, the mounting point, the axlebox and the likely slip (x and y swapped).
+    """
+    pts = _wheelset_points(model, "the wheelset model")
+    centre = 0.5 * (np.asarray(pts["axlebox_L"].xyz, float) + np.asarray(pts["axlebox_R"].xyz, float))
+    box = {s: np.asarray(pts[f"axlebox_{s}"].xyz, float) - centre for s in "LR"}
+    tol = SENSOR_AXLEBOX_TOLERANCE_M
+    for i in range(len(channels)):
+        r = channels.iloc[i]
+        if r["quantity"] != "acceleration":
+            continue
+        p = np.array([r["x"], r["y"], r["z"]], float)
+        side = str(r["side"])
+        d = float(np.linalg.norm(p - box[side]))
+        if d <= tol:
+            continue
+        # (the other side's axlebox and mm are refused by check_sensors already: y's sign, 3 m)
+        hint = "; x and y swapped?" if float(np.linalg.norm(p[[1, 0, 2]] - box[side])) <= tol else ""
+        b = box[side]
+        raise SensorTableError(f"{source}: row {i + 2} ({r['name']!r}, side {side}): mounting point ({p[0]:g}, "
+                               f"{p[1]:g}, {p[2]:g}) m is {d:.3g} m from the model's side-{side} axlebox at "
+                               f"({b[0]:.3g}, {b[1]:.3g}, {b[2]:.3g}) m (x, y, z relative to the wheelset centre); an "
+                               f"axlebox accelerometer sits within {tol:g} m of it{hint}")
 
 
 def sensor_model(model, channels: pd.DataFrame):
@@ -115,6 +246,8 @@ def sensor_model(model, channels: pd.DataFrame):
         check_railway_frame(pts, getattr(model, "fe", None), what="the wheelset model")
     except DofError as exc:
         raise ChannelError(str(exc)) from None
+    # and in metres, the size of a railway wheelset (a model in mm inverts to roughness in metres)
+    check_wheelset_geometry(model)
     centre = 0.5 * (np.asarray(axl.xyz) + np.asarray(axr.xyz))
     new, labels = [], []
     for _, r in channels.iterrows():

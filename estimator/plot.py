@@ -103,7 +103,9 @@ def plot_spectra(estimate, stretch: str, *, wheelset=None, models=None, referenc
             a.plot(g["wavelength_m"] * 1e3, g["level_db"], "o-", ms=3, color=_COLOURS.get(m),
                    label=MODEL_LABELS.get(m, m))
             lim = g
-        if reference_levels is not None:
+        # a reference none of whose rails could be compared gives an empty table without columns: no curve
+        if reference_levels is not None and not reference_levels.empty and {"rail", "wavelength_m",
+                                                                             "ref_db"} <= set(reference_levels):
             g = reference_levels[(reference_levels["rail"] == rail)]
             if not g.empty:
                 g = g.drop_duplicates("wavelength_m").sort_values("wavelength_m", ascending=False)
@@ -123,7 +125,7 @@ def plot_spectra(estimate, stretch: str, *, wheelset=None, models=None, referenc
     return fig
 
 
-_KIND_COLOURS = {"dropout_nan": "tab:red", "dropout_flat": "tab:purple", "clipping": "tab:orange",
+_KIND_COLOURS = {"dropout_nan": "tab:red", "dropout_flat": "tab:purple", "clipping": "tab:orange", "glitch": "gold",
                  "low_speed": "tab:gray", "standstill": "black", "reversing": "tab:brown",
                  "odometry_jump": "tab:pink"}
 

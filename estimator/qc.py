@@ -5,6 +5,9 @@ Per acceleration channel:
 * **dropouts** — NaN samples, and *flat* segments where the front end holds
   its last value (``≥ flat_min_s`` of bit-identical consecutive samples: a
   live 24-bit channel with sensor noise never repeats a value that long);
+* **glitches** — samples beyond :data:`ACC_GLITCH_G` (500 g), which no axlebox
+  produces: corrupt samples, masked, and never taken for clipping (the
+  other wheelset's rail coupling does not take them at full scale);
 * **clipping** — samples at the channel's largest magnitude that recur
   (``≥ clip_min_samples`` samples within 0.1 % of the extreme: a signal that
   merely peaks once is not clipped); the whole excursion beyond 99 % of that
@@ -36,9 +39,31 @@ from estimator.config import EstimatorConfig
 from estimator.run import QCEvent, QCMask, Run
 from estimator.spatial import OdometryTrack
 
-__all__ = ["check_run", "runs_of", "dropouts", "flat_segments", "clipped"]
+__all__ = ["check_run", "runs_of", "dropouts", "flat_segments", "clipped", "glitches", "ACC_GLITCH_G",
+           "ACC_RMS_MAX_G", "ACC_GLITCH_MAX_SHARE"]
 
 log = logging.getLogger("estimator")
+
+G0 = 9.80665
+#: Largest acceleration [g] an axlebox of a metro or tram produces. Measured axlebox peaks stay in the tens of g on
+#: plain track and reach 50-100 g at rail joints, crossings and welds and a few hundred g under a severe wheel flat;
+#: axlebox accelerometers are rated ±500 g (ICP shock types). A sample beyond it is no measurement but a corrupt
+#: sample (a bit error, a front end's overflow code): a glitch, masked as such (kind ``glitch``) on its channel —
+#: never taken as the clip level of a saturated channel, and never fed to the other wheelset's rail coupling as
+#: a recorded full-scale value.
+ACC_GLITCH_G = 500.0
+ACC_GLITCH_MS2 = ACC_GLITCH_G * G0
+#: Largest RMS acceleration [g] of an axlebox channel over a run. A metro's axlebox runs at a few g RMS (the virtual
+#: line's about 0.4 g at 9 m/s), up to ~10-20 g over severe corrugation at speed; 100 g RMS is 5-10 times beyond any
+#: of them. A channel at that level is in the wrong unit or scale (ADC counts or mV read as g, a sensitivity
+#: applied twice): :func:`estimator.io.assemble.assemble_run` refuses it (ChannelError naming the channel, its unit
+#: and sensitivity).
+ACC_RMS_MAX_G = 100.0
+ACC_RMS_MAX_MS2 = ACC_RMS_MAX_G * G0
+#: Largest share of a channel's samples beyond :data:`ACC_GLITCH_G` that can still be isolated glitches (1 %: ten
+#: corrupt samples a second at 1 kHz); more says the whole channel is off scale (a unit error), refused like a high
+#: RMS.
+ACC_GLITCH_MAX_SHARE = 0.01
 
 
 def runs_of(flag: np.ndarray) -> list[tuple[int, int]]:
@@ -65,6 +90,12 @@ def _grow(flag: np.ndarray, n: int) -> np.ndarray:
 def dropouts(x: np.ndarray) -> np.ndarray:
     """NaN (or infinite) samples."""
     return ~np.isfinite(x)
+
+
+def glitches(x: np.ndarray) -> np.ndarray:
+    """Finite samples beyond :data:`ACC_GLITCH_MS2` (an acceleration in m/s² no axlebox produces)."""
+    with np.errstate(invalid="ignore"):
+        return np.isfinite(x) & (np.abs(x) > ACC_GLITCH_MS2)
 
 
 def flat_segments(x: np.ndarray, min_len: int) -> np.ndarray:
@@ -145,18 +176,25 @@ def check_run(run: Run, track: OdometryTrack, config: EstimatorConfig = Estimato
         for e in run.rejected:
             if e.kind == "time_gap" and e.channel == name:
                 lost |= (t >= e.t_start - 0.5 / fs) & (t <= e.t_end + 0.5 / fs)
-        flat = flat_segments(x, max(2, int(round(config.flat_min_s * fs))))
-        clip, level = clipped(x, config.clip_min_samples)
+        glitch = glitches(x)
+        # a glitch is neither the clip level nor part of a held value: both are judged on the rest
+        xq = np.where(glitch, np.nan, x) if glitch.any() else x
+        flat = flat_segments(xq, max(2, int(round(config.flat_min_s * fs))))
+        clip, level = clipped(xq, config.clip_min_samples)
+        peak = float(np.max(np.abs(x[glitch]))) if glitch.any() else 0.0
         for flag, kind, reason in (
                 (nan & ~lost, "dropout_nan", "no data (NaN) in the recording"),
+                (glitch, "glitch", f"{int(glitch.sum())} sample(s) beyond {ACC_GLITCH_G:g} g (up to {peak:.4g} m/s^2): "
+                                   "no axlebox produces that, corrupt samples; masked, and left out of the other "
+                                   "wheelset's rail coupling"),
                 (flat, "dropout_flat", f"value held constant for >= {config.flat_min_s * 1e3:g} ms (front end "
                                        "holding its last sample)"),
                 (clip & ~flat, "clipping", f"channel saturated at {level:.4g} m/s^2 (>= {config.clip_min_samples} "
                                            "samples at the extreme)")):
             if flag.any():
                 events.extend(_events(kind, name, flag, t, chain, reason, merge))
-        masked[i] = _grow(nan | flat | clip, margin)
-        saturated[i] = masked[i] & ~_grow(nan | flat, margin)
+        masked[i] = _grow(nan | flat | clip | glitch, margin)
+        saturated[i] = masked[i] & ~_grow(nan | flat | glitch, margin)
     # whole-run findings
     reverse = (speed < -config.standstill_m_s)
     dchain = np.gradient(chain) * track.travel_sign if n > 1 else np.zeros(n)

@@ -23,23 +23,41 @@ import numpy as np
 import pandas as pd
 
 from estimator.config import EstimatorConfig
+from estimator.errors import RunFileError
 from estimator.results import FieldEstimate
 from estimator.standards.en13231 import BandIndexes, band_indexes
 from estimator.standards.en15610 import roughness_spectrum
 
-__all__ = ["ReferenceIndexes", "reference_indexes", "on_uniform_grid", "MAX_GAP_STEPS", "window_pk", "compare_bands", "compare_spectra",
-           "models_ranking"]
+__all__ = ["ReferenceIndexes", "reference_indexes", "on_uniform_grid", "MAX_GAP_STEPS", "MAX_REFERENCE_SAMPLES",
+           "window_pk", "compare_bands", "compare_spectra", "models_ranking", "reference_overlap"]
 
 log = logging.getLogger("estimator")
 
 
 @dataclass(frozen=True, eq=False)
 class ReferenceIndexes:
-    """EN 13231-3 indexes of a reference per rail on its own uniform grid."""
+    """EN 13231-3 indexes of a reference per rail on its own uniform grid.
+
+    ``source`` names the record (its file); ``notes`` are what the reader and :func:`reference_indexes` found
+    doubtful about it (rows left out, an implausible level, a rail left out), carried into the estimate's report
+    and summary by :func:`estimator.export.write_estimate`.
+    """
 
     x: dict
     profile: dict
     indexes: dict
+    source: str = "reference"
+    notes: tuple = ()
+
+    @property
+    def rails(self) -> tuple[str, ...]:
+        """The rails that can be compared."""
+        return tuple(sorted(self.indexes))
+
+    def span(self, rail: str) -> tuple[float, float]:
+        """The chainage span [m] of the reference's rail ``rail``."""
+        x = self.x[rail]
+        return float(x[0]), float(x[-1])
 
     def pk_pk(self, band, rail) -> tuple[np.ndarray, np.ndarray]:
         idx = self.indexes[rail]
@@ -48,6 +66,12 @@ class ReferenceIndexes:
 
 #: samples further apart than this many steps of the record's grid are a gap, not interpolated across
 MAX_GAP_STEPS = 5
+#: Most samples of one rail's reference on its uniform grid: 50 km at 1 mm, the bound of the monitoring's trolley
+#: reader too (a trolley measures a few km a shift); more is a reading whose chainage is far from the others (a
+#: typo, a chainage in mm) and would not fit in memory.
+MAX_REFERENCE_SAMPLES = 50_000_000
+
+
 
 
 def on_uniform_grid(x: np.ndarray, r: np.ndarray, dx: float, x0: float | None = None,
@@ -60,7 +84,12 @@ def on_uniform_grid(x: np.ndarray, r: np.ndarray, dx: float, x0: float | None = 
     """
     x0 = float(x[0]) if x0 is None else x0
     x1 = float(x[-1]) if x1 is None else x1
-    grid = x0 + dx * np.arange(int(round((x1 - x0) / dx)) + 1)
+    steps = (x1 - x0) / dx if dx > 0 else math.inf
+    if not (math.isfinite(x0) and math.isfinite(x1) and math.isfinite(steps) and steps + 1 <= MAX_REFERENCE_SAMPLES):
+        raise RunFileError(f"chainage {x0:g}-{x1:g} m at a {dx:g} m step is {steps + 1:.3g} samples; a reference "
+                           f"rail holds at most {MAX_REFERENCE_SAMPLES} (a reading far from the others: a chainage "
+                           "typo, or chainages in mm?)")
+    grid = x0 + dx * np.arange(int(round(steps)) + 1)
     if x.size < 2:
         return grid, np.where(np.abs(grid - x[0]) <= 0.5 * dx, r[0], np.nan) if x.size else np.full(grid.size, np.nan)
     v = np.interp(grid, x, r, left=np.nan, right=np.nan)
@@ -73,8 +102,16 @@ def on_uniform_grid(x: np.ndarray, r: np.ndarray, dx: float, x0: float | None = 
 def reference_indexes(reference: pd.DataFrame, config: EstimatorConfig = EstimatorConfig(),
                       span: tuple[float, float] | None = None, source: str = "reference") -> ReferenceIndexes:
     """Band indexes of a reference table ``chainage_m, rail, roughness_m`` (each rail on a uniform grid,
-    :func:`on_uniform_grid`: gaps stay gaps). A rail with fewer than 10 samples is left out with a WARNING."""
+    :func:`on_uniform_grid`: gaps stay gaps). A rail with fewer than 10 samples is left out with a WARNING, kept
+    in the result's ``notes`` with the reader's (``reference.attrs["notes"]``, :func:`estimator.io.read_trolley`).
+
+    Raises
+    ------
+    RunFileError
+        A rail whose chainages span more than :data:`MAX_REFERENCE_SAMPLES` grid steps (names ``source``).
+    """
     xs, ps, ids = {}, {}, {}
+    notes = list(reference.attrs.get("notes", ()))
     for rail, g in reference.groupby("rail"):
         x = g["chainage_m"].to_numpy(float)
         r = g["roughness_m"].to_numpy(float)
@@ -84,15 +121,49 @@ def reference_indexes(reference: pd.DataFrame, config: EstimatorConfig = Estimat
             sel = (x >= span[0] - 10) & (x <= span[1] + 10)
             x, r = x[sel], r[sel]
         if x.size < 10:
-            log.warning("%s: rail %s has %d sample(s)%s (< 10): not compared", source, rail, x.size,
-                        f" within {span[0]:.1f}-{span[1]:.1f} m" if span is not None else "")
+            note = (f"{source}: rail {rail} has {x.size} sample(s)"
+                    f"{f' within {span[0]:.1f}-{span[1]:.1f} m' if span is not None else ''} (< 10): not compared")
+            log.warning("%s", note)
+            notes.append(note)
             continue
         dx = float(np.median(np.diff(x)))
-        grid, prof = on_uniform_grid(x, r, dx)
+        try:
+            grid, prof = on_uniform_grid(x, r, dx)
+        except RunFileError as exc:
+            raise RunFileError(f"{source}: rail {rail}: {exc}") from None
         xs[rail], ps[rail] = grid, prof
         bi = band_indexes(prof[None, :], dx, config.bands_mm, [config.window_m(b) for b in config.bands_mm])
         ids[rail] = BandIndexes(bi.dx, bi.bands_mm, bi.windows_m, bi.pk_pk[:, 0], bi.decimation)
-    return ReferenceIndexes(xs, ps, ids)
+    if not ids:
+        note = (f"{source}: no reference rail could be compared (each has fewer than 10 readings"
+                f"{f' within {span[0]:.1f}-{span[1]:.1f} m' if span is not None else ''})")
+        log.warning("%s", note)
+        notes.append(note)
+    return ReferenceIndexes(xs, ps, ids, source=source, notes=tuple(notes))
+
+
+def reference_overlap(estimate: FieldEstimate, ref: ReferenceIndexes) -> list[str]:
+    """What a reader of the comparison must know about where the reference and the run meet: one note per rail of
+    the reference that does not overlap the estimate's chainage span (naming the record and both spans), or one
+    note when no rail does (nothing compared: chainages in another unit, another place). Empty when they meet."""
+    xs = [p.chainage_m[np.isfinite(p.chainage_m)] for p in estimate.profiles.values()]
+    xs = [x for x in xs if x.size]
+    if not xs or not ref.indexes:
+        return []
+    lo, hi = float(min(x[0] for x in xs)), float(max(x[-1] for x in xs))
+    apart = {rail: ref.span(rail) for rail in ref.rails if ref.span(rail)[1] < lo or ref.span(rail)[0] > hi}
+    if not apart:
+        return []
+    spans = ", ".join(f"rail {r} {a:.1f}-{b:.1f} m" for r, (a, b) in apart.items())
+    if len(apart) == len(ref.rails):
+        mm = [f"rail {r} {a * 1e-3:.1f}-{b * 1e-3:.1f} m" for r, (a, b) in apart.items()
+              if a * 1e-3 <= hi and b * 1e-3 >= lo]
+        why = (f"chainages in mm? they would cover {', '.join(mm)}" if mm else
+               "chainages in another unit, or a record of another place?")
+        return [f"{ref.source}: the reference ({spans}) does not overlap the run's {lo:.1f}-{hi:.1f} m: nothing "
+                f"compared ({why})"]
+    return [f"{ref.source}: reference {spans} does not overlap the run's {lo:.1f}-{hi:.1f} m: that rail is not "
+            "compared"]
 
 
 def window_pk(x: np.ndarray, pk: np.ndarray, edges: np.ndarray, min_valid: float = 0.5) -> np.ndarray:

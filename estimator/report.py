@@ -42,8 +42,12 @@ _e, _fmt, _table, _figure = escape, fmt_number, table_html, figure_html
 
 def write_report(estimate, path, *, figures: Mapping[str, Path] | None = None,
                  comparison: pd.DataFrame | None = None, ranking: pd.DataFrame | None = None,
-                 spectra_comparison: pd.DataFrame | None = None, lead_trail: pd.DataFrame | None = None) -> Path:
-    """Write the report of one estimate (module docstring) to ``path``; figures are PNG files embedded."""
+                 spectra_comparison: pd.DataFrame | None = None, lead_trail: pd.DataFrame | None = None,
+                 reference_notes=None) -> Path:
+    """Write the report of one estimate (module docstring) to ``path``; figures are PNG files embedded.
+
+    ``reference_notes`` (a list, None without a reference): what was doubtful about the reference (rows left out,
+    its level, no overlap with the run, no rail compared), shown in section 6."""
     fig = dict(figures or {})
     e = estimate
     parts = [f"<h1>Rail roughness from axlebox accelerations — run {_e(e.run_id)}</h1>"]
@@ -113,6 +117,13 @@ def write_report(estimate, path, *, figures: Mapping[str, Path] | None = None,
     parts.append(_table(ix, 80))
     # 6
     parts.append(f"<h2>{SECTION_TITLES[5]}</h2>")
+    if reference_notes:
+        parts.append("<div class='box warn'>Reference: " + "<br>".join(_e(n) for n in reference_notes) + "</div>")
+    compared = comparison is not None and not comparison.empty and "n_windows" in comparison \
+        and (comparison["n_windows"] > 0).any()
+    if reference_notes is not None and not compared:
+        parts.append("<p><b>No reference rail could be compared with the estimate</b> (see above); the table "
+                     "shows each model's median band peak-to-peak over the run.</p>")
     if comparison is not None and not comparison.empty:
         parts += ["<p>Against the reference (per 1 m window: energy mean of the band peak-to-peak, error in dB).</p>",
                   _table(comparison, 80)]
@@ -120,8 +131,9 @@ def write_report(estimate, path, *, figures: Mapping[str, Path] | None = None,
             parts += ["<p><b>Which model wins</b> (smallest RMS window error) per band and rail:</p>",
                       _table(ranking)]
     else:
-        parts.append("<p>No reference was given: the table shows each model's median band peak-to-peak over the run "
-                     "(their spread is the model uncertainty).</p>")
+        if reference_notes is None:
+            parts.append("<p>No reference was given: the table shows each model's median band peak-to-peak over "
+                         "the run (their spread is the model uncertainty).</p>")
         ix = e.indexes
         if not ix.empty:
             piv = ix[(ix["stretch"] == "run") & (ix["wheelset"] == e.leading)].pivot_table(

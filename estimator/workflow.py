@@ -53,12 +53,13 @@ from estimator.contact_angles import CurvingModel, contact_angles
 from estimator.contact_filter import contact_gain
 from estimator.corrugation import MIN_PROMINENCE_DB, classify, model_resonances, spectral_peak
 from estimator.errors import ChannelError, ConfigurationError, NoValidDataError, WheelbaseError
-from estimator.inversion import (TimeIrregularity, _log_smooth_rms, condition_by_band, invert, model_channels,
-                                 rail_coupling, sample_many, wheelset_transfer)
+from estimator.inversion import (TimeIrregularity, _log_smooth_rms, check_sensor_mounting, check_wheelset_geometry,
+                                 condition_by_band, invert, model_channels, rail_coupling, sample_many,
+                                 wheelset_transfer)
 from estimator.io import LineDescription, read_line, read_run
 from estimator.io.sensors import check_sensors, read_sensors
 from estimator.orientation import Orientation, orientation
-from estimator.qc import check_run
+from estimator.qc import check_run, glitches
 from estimator.results import FieldEstimate, ProfileEstimate
 from estimator.run import Run
 from estimator.sleepers import SleeperPassing, quasi_static_orders, sleeper_comb
@@ -252,12 +253,28 @@ def prepare(model, sensors, *, line=None, trackform: Trackform | None = None,
             config: EstimatorConfig | None = None) -> FieldModel:
     """A :class:`FieldModel` from a wheelset model (ModalModel or a ``hybrid_model.npz`` path; made
     :func:`in_service`), a sensor table (path or DataFrame), an optional line description (path or
-    LineDescription) and options."""
+    LineDescription) and options.
+
+    Raises
+    ------
+    ModelFileError, SensorTableError, RunFileError
+        An unreadable model file, sensor table or line description.
+    WheelsetModelError
+        A model whose geometry is not a railway wheelset's in metres
+        (:func:`estimator.inversion.check_wheelset_geometry`).
+    SensorTableError
+        An accelerometer row not on its side's axlebox (:func:`estimator.inversion.check_sensor_mounting`).
+    """
     from receptance.model_io import load_model
 
     cfg = config or EstimatorConfig()
     m = in_service(load_model(model) if isinstance(model, (str, Path)) else model)
     table = read_sensors(sensors) if isinstance(sensors, (str, Path)) else check_sensors(sensors)
+    # model and sensor table against each other before any run is read: a wheelset in metres (not mm), and every
+    # accelerometer on its side's axlebox (not x and y swapped, not near the middle of the axle)
+    what = f"model {model}" if isinstance(model, (str, Path)) else f"model {getattr(m, 'name', '') or '(object)'!r}"
+    check_wheelset_geometry(m, what)
+    check_sensor_mounting(m, table, str(sensors) if isinstance(sensors, (str, Path)) else "<sensor table>")
     ln = read_line(line) if isinstance(line, (str, Path)) else line
     contact = cfg.contact.contact()
     return FieldModel(m, table, ln, trackform, cfg, contact.stiffness, contact.semi_axis_x,
@@ -465,6 +482,10 @@ def _coupling_valid(run, idx_o: np.ndarray, w: int, wo: int, steps: list) -> np.
     rail coupling: valid ones, and saturated ones up to ``MAX_COUPLING_SATURATED_SHARE`` (stated and logged)."""
     strict = ~run.mask.masked[idx_o].any(axis=0)
     loose = run.mask.coupling_valid(idx_o)
+    # only samples a front end can hold at its full scale: never a corrupt one (NaN, or beyond what an axlebox
+    # produces, estimator.qc.glitches), whatever mask a caller built
+    acc_o = run.acceleration[idx_o]
+    loose &= np.isfinite(acc_o).all(axis=0) & ~glitches(acc_o).any(axis=0) | strict
     extra = loose & ~strict
     if not extra.any():
         return strict

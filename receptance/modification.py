@@ -150,13 +150,20 @@ def register(cls: type) -> type:
 
 
 def modification_from_dict(d: dict) -> Modification:
-    """Rebuild a modification stored by :meth:`Modification.to_dict`."""
+    """Rebuild a modification stored by :meth:`Modification.to_dict` (ModificationError naming what is wrong:
+    an entry that is not an object, an unknown kind, parameters the kind does not take)."""
+    if not isinstance(d, dict):
+        raise ModificationError(f"a stored modification must be an object {{\"kind\": ..., parameters}}, got "
+                                f"{type(d).__name__} {d!r:.60}")
     kind = d.get("kind")
-    if kind not in MODIFICATIONS:
+    if not isinstance(kind, str) or kind not in MODIFICATIONS:
         raise ModificationError(f"unknown modification kind {kind!r}; registered kinds: {sorted(MODIFICATIONS)}")
     cls = MODIFICATIONS[kind]
     params = {k: _from_json(v) for k, v in d.items() if k != "kind"}
-    return cls(**params)
+    try:
+        return cls(**params)
+    except TypeError as exc:
+        raise ModificationError(f"modification {kind!r}: {exc}") from None
 
 
 def _jsonable(v):

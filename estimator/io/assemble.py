@@ -30,7 +30,12 @@ Rules (field contract):
 * speed and position need increasing time stamps; a stretch they do not
   cover is found by :func:`estimator.spatial.odometry_track`;
 * a file unit that contradicts the sensor table's unit is an error
-  (ChannelError naming both);
+  (ChannelError naming both); so is an acceleration channel whose level no
+  axlebox produces (over :data:`estimator.qc.ACC_RMS_MAX_G` RMS, or more than
+  :data:`estimator.qc.ACC_GLITCH_MAX_SHARE` of its samples beyond
+  :data:`estimator.qc.ACC_GLITCH_G`: counts, mV or a wrong sensitivity), and
+  accelerations sampled below :data:`MIN_ACCELERATION_RATE_HZ` (time stamps
+  in ms); non-finite time stamps are named errors;
 * the sensitivities of speed, position and balise channels are applied while
   reading; those of the accelerations by :meth:`Run.apply_sensitivities`
   (recorded in the history).
@@ -48,6 +53,7 @@ import pandas as pd
 from estimator.errors import ChannelError, OdometryError, RunFileError
 from estimator.io.registry import RawChannel, RawRecording
 from estimator.io.sensors import normalise_unit
+from estimator.qc import ACC_GLITCH_G, ACC_GLITCH_MAX_SHARE, ACC_GLITCH_MS2, ACC_RMS_MAX_G, ACC_RMS_MAX_MS2, G0
 from estimator.run import DIRECTIONS, ORIENTATIONS, Odometry, QCEvent, Run, RunHeader
 
 __all__ = ["assemble_run", "sample_grid"]
@@ -65,6 +71,11 @@ GRID_ATOL = 0.01
 ODOMETRY_GAP_FACTOR = 1.5
 #: most samples per channel (about 12 h at 1 kHz)
 MAX_SAMPLES = 50_000_000
+#: Lowest sampling rate of the accelerations [Hz]. The inversion band ends at 0.4 fs; the EN 13231-3 30-100 mm band
+#: at the 3 m/s speed gate needs 100 Hz, at metro speeds (10-20 m/s) several hundred, and axlebox data loggers
+#: sample at 1-25 kHz. Below 200 Hz no corrugation band is resolved at all: the time stamps are in another unit
+#: (ms or µs read as s) or the channel is not an axlebox acceleration.
+MIN_ACCELERATION_RATE_HZ = 200.0
 #: baseline [s] of the speed derived from a position channel when no speed is recorded: long enough to average an
 #: odometer's resolution (1 cm over 0.2 s is 0.05 m/s) and to hold a median that rejects a reset step, short
 #: against a metro's speed changes (a symmetric baseline passes a constant acceleration unchanged)
@@ -86,6 +97,7 @@ def sample_grid(ch: RawChannel, source: str) -> tuple[float, np.ndarray]:
     t = ch.t
     if t.size < 2:
         raise ChannelError(f"{source}: channel {ch.name!r} has {t.size} sample(s); a signal needs at least 2")
+    _finite_time(ch, source, ChannelError)
     d = np.diff(t)
     if not np.all(d > 0):
         k = int(np.argmax(~(d > 0)))
@@ -95,13 +107,25 @@ def sample_grid(ch: RawChannel, source: str) -> tuple[float, np.ndarray]:
     dt = float(np.mean(d[one]))  # the median of quantised stamps is one of two values; their mean is the interval
     steps = np.maximum(np.rint(d / dt), 1.0)
     off = np.abs(d / dt - steps)  # each difference's distance from a whole number of intervals
-    if np.max(off) > GRID_ATOL:
+    if not np.max(off) <= GRID_ATOL:  # (NaN compares False: caught too)
         k = int(np.argmax(off))
         what = (f"resumes {d[k] / dt:.3f} sampling intervals after a gap, off its sampling grid" if steps[k] > 1 else
                 f"is not evenly sampled (an interval {d[k] / dt:.3f} times the mean)")
         raise ChannelError(f"{source}: channel {ch.name!r} {what} (interval {d[k]:.6g} s at t = {t[k]:.3f} s, "
                            f"mean {dt:.6g} s); the estimator needs a constant sampling rate")
     return 1.0 / dt, np.concatenate([[0], np.cumsum(steps)]).astype(np.int64)
+
+
+def _finite_time(ch: RawChannel, source: str, error: type[Exception]) -> None:
+    """Raise ``error`` naming the channel and the first sample whose time stamp is NaN or infinite (a corrupt
+    master channel: no sampling grid, no duration can be computed from it)."""
+    bad = ~np.isfinite(ch.t)
+    if bad.any():
+        k = int(np.argmax(bad))
+        raise error(f"{source}: channel {ch.name!r} has {int(bad.sum())} non-finite time stamp(s) (NaN/inf), the "
+                    f"first at sample {k} of {ch.t.size} ({float(ch.t[k])!r} s"
+                    f"{f' after {ch.t[k - 1]:.6g} s' if k > 0 and np.isfinite(ch.t[k - 1]) else ''}); the file's "
+                    "time base is corrupt")
 
 
 def _on_grid(ch: RawChannel, index: np.ndarray) -> np.ndarray:
@@ -145,6 +169,7 @@ def _short_ends(ch: RawChannel, name: str, k0: int, size: int, n: int, t0: float
 def _odometry_gaps(ch: RawChannel, source: str) -> list[tuple[float, float, str]]:
     """Stretches an odometry channel does not cover: its time stamps jump by more than
     :data:`ODOMETRY_GAP_FACTOR` median intervals (OdometryError if they do not increase)."""
+    _finite_time(ch, source, OdometryError)
     d = np.diff(ch.t)
     if ch.t.size < 2 or not np.all(d > 0):
         raise OdometryError(f"{source}: channel {ch.name!r} needs at least two samples with increasing time stamps")
@@ -157,6 +182,29 @@ def _unit_check(ch: RawChannel, row: pd.Series, source: str) -> None:
     if file_unit and file_unit != row["unit"]:
         raise ChannelError(f"{source}: channel {ch.name!r} is recorded in {ch.unit!r} but the sensor table says "
                            f"{row['unit']!r} (sensitivity {row['sensitivity']:g}); correct the table or the file")
+
+
+def _level_check(values: np.ndarray, row: pd.Series, source: str) -> None:
+    """Refuse an acceleration channel whose level no axlebox produces (:data:`estimator.qc.ACC_RMS_MAX_G`,
+    :data:`estimator.qc.ACC_GLITCH_MAX_SHARE`): a unit or scaling error (ChannelError naming the channel, its unit
+    and sensitivity). Isolated samples beyond :data:`estimator.qc.ACC_GLITCH_G` are left to quality control
+    (glitches) and do not count towards the RMS."""
+    sens = float(row["sensitivity"])
+    x = values[np.isfinite(values)] * sens
+    if x.size == 0:
+        return
+    over = np.abs(x) > ACC_GLITCH_MS2
+    share = float(over.mean())
+    rest = x[~over]
+    rms = float(np.sqrt(np.mean(rest ** 2))) if rest.size else math.inf
+    if share > ACC_GLITCH_MAX_SHARE or rms > ACC_RMS_MAX_MS2:
+        rms_all = float(np.sqrt(np.mean(x ** 2)))
+        raise ChannelError(
+            f"{source}: channel {row['name']!r} (unit {row['unit']!r}, sensitivity {sens:g}): RMS {rms_all / G0:.4g} g "
+            f"({rms_all:.4g} m/s^2) over the run, {100 * share:.3g} % of its samples beyond {ACC_GLITCH_G:g} g (peak "
+            f"{float(np.max(np.abs(x))) / G0:.4g} g); an axlebox acceleration stays below {ACC_RMS_MAX_G:g} g RMS "
+            f"and {ACC_GLITCH_G:g} g peak: raw ADC counts or mV without a conversion, or a wrong unit or sensitivity "
+            "in the sensor table?")
 
 
 def _unusable(raw: RawRecording, name: str, source: str, error: type[Exception]) -> None:
@@ -339,6 +387,12 @@ def assemble_run(raw: RawRecording, sensors: pd.DataFrame, source: str, fmt: str
         fs_run = float(np.median([r for r in rates.values() if round(r, 6) == common]))
     else:
         fs_run = float(fs)
+    if not fs_run >= MIN_ACCELERATION_RATE_HZ:
+        names = [n for n, r in rates.items() if abs(r / fs_run - 1) <= RATE_RTOL]
+        raise ChannelError(f"{source}: the acceleration channels {names} are sampled at {fs_run:.6g} Hz (time-stamp "
+                           f"interval {1 / fs_run:.6g} s); an axlebox recording needs >= "
+                           f"{MIN_ACCELERATION_RATE_HZ:g} Hz (the inversion band ends at 0.4 fs). Time stamps in ms or µs rather than s? (that would "
+                           f"be {fs_run * 1e3:.6g} Hz or {fs_run * 1e6:.6g} Hz)")
     keep = []
     for row in present:
         name = str(row["name"])
@@ -376,6 +430,8 @@ def assemble_run(raw: RawRecording, sensors: pd.DataFrame, source: str, fmt: str
         gaps += _short_ends(ch, name, k0, values.size, n, t0, fs_run, odometry)
     if n < 2:
         raise ChannelError(f"{source}: the acceleration channels hold fewer than two samples")
+    for i, row in enumerate(keep):
+        _level_check(data[i], row, source)
     for e in gaps:
         log.warning("%s: %s", source, e.describe())
     lost = f"; {len(gaps)} time-stamp gap(s), the samples lost masked" if gaps else ""

@@ -152,6 +152,15 @@ _TRACKFORM_FIELD_ORDER = tuple(f.name for f in fields(Trackform))
 #: Sleeper spacings a line may state [m]: the physical range of a Trackform's support spacing, so that a spacing
 #: in mm (600) or a sign slip is refused rather than combing the spectra at a wavelength that is not there.
 _SLEEPER_SPACING_RANGE_M = PLAUSIBLE["support_spacing"]["physical"]
+#: Curve radii a line may state [m]. The tightest curves rail vehicles run through are a tramway's, about 15-25 m
+#: (metros rarely go below 60-100 m; 10 m leaves a margin below the tightest tram curve); beyond 100 km a curve
+#: bends the track less than its alignment tolerances do (mainline curves stay below ~10-15 km). A radius outside
+#: is a slip or another unit (a radius in km: 0.3; in mm: 400000) and would change the estimate's contact angles.
+CURVE_RADIUS_RANGE_M = (10.0, 100_000.0)
+#: Cant (superelevation) a line may state [mm]: 0 to 200 mm (EN 13803 allows up to 180-200 mm on ballasted and slab
+#: track; no line raises the inner rail over a curve's body). A non-zero cant below 1 mm is a cant in m (0.04 for
+#: 40 mm): cants are set in whole millimetres.
+CANT_RANGE_MM = (0.0, 200.0)
 
 
 def _json_kind(v) -> str:
@@ -311,6 +320,19 @@ def _curve(e: Mapping, i: int, src: str) -> Curve:
     r = _num(e, "radius_m", src, item)
     if r <= 0:
         raise RunFileError(f"{src}: {item}: radius_m must be > 0, got {r:g}")
+    lo, hi = CURVE_RADIUS_RANGE_M
+    if not lo <= r <= hi:
+        hint = next((f" (a radius in {u}? {r * f:g} m)" for f, u in ((1e-3, "mm"), (1e3, "km"))
+                     if lo <= r * f <= hi), "")
+        raise RunFileError(f"{src}: {item}: radius_m {r:g} m is outside {lo:g}-{hi:g} m{hint}; the tightest tram "
+                           "curves are about 15-25 m, and a curve flatter than 100 km is a straight")
+    cant = _num(e, "cant_mm", src, item, 0.0)
+    lo, hi = CANT_RANGE_MM
+    if not lo <= cant <= hi or 0 < cant < 1:
+        hint = (f" (a cant in m? {cant * 1e3:g} mm)" if 0 < cant < 1 else
+                f" (a cant in um? {cant * 1e-3:g} mm)" if lo <= cant * 1e-3 <= hi and cant > hi else "")
+        raise RunFileError(f"{src}: {item}: cant_mm {cant:g} mm is outside {lo:g}-{hi:g} mm{hint}; cant is the "
+                           "outer rail's superelevation in whole millimetres")
     a, b = _stretch(e, src, item)
     t_in, t_out = _num(e, "transition_in_m", src, item, 0.0), _num(e, "transition_out_m", src, item, 0.0)
     for key, t in (("transition_in_m", t_in), ("transition_out_m", t_out)):
@@ -320,7 +342,7 @@ def _curve(e: Mapping, i: int, src: str) -> Curve:
     if t_in + t_out - (b - a) > 1e-9 * max(1.0, b - a):
         raise RunFileError(f"{src}: {item}: transitions {t_in:g} m + {t_out:g} m are longer than the curve "
                            f"({a:g}-{b:g} m, {b - a:g} m); its curvature would never reach 1/radius_m")
-    return Curve(_ident(e) or f"curve_{i + 1}", a, b, r, direction, _num(e, "cant_mm", src, item, 0.0), t_in, t_out)
+    return Curve(_ident(e) or f"curve_{i + 1}", a, b, r, direction, cant, t_in, t_out)
 
 
 def _trackform_section(e: Mapping, i: int, key: str, src: str) -> TrackSection:
@@ -433,6 +455,9 @@ def read_line(path) -> LineDescription:
                            "the last one, so give each key once") from None
     except (ValueError, UnicodeDecodeError) as exc:
         raise RunFileError(f"{p}: not a JSON line description ({exc})") from None
+    except RecursionError:
+        raise RunFileError(f"{p}: not a JSON line description (lists or objects nested too deeply to read; a line "
+                           "description nests a few levels)") from None
     if not isinstance(d, dict):
         raise RunFileError(f"{p}: a line description is a JSON object")
     src = str(p)
@@ -493,13 +518,75 @@ def _trolley_csv(p: Path) -> pd.DataFrame:
         raise RunFileError(f"{p}: not a readable trolley CSV ({str(exc).strip()})") from None
 
 
+def _iso3095_rms_um() -> float:
+    """RMS [µm] of a rail exactly at the ISO 3095:2013 limit spectrum over its 22 one-third octaves (3.15 mm to
+    0.4 m): the energy sum of the limit levels (dB re 1 µm)."""
+    from estimator.standards.iso3095 import ISO3095_LIMIT_DB
+
+    return float(math.sqrt(sum(10 ** (v / 10) for v in ISO3095_LIMIT_DB.values())))
+
+
+#: RMS [µm] of a rail at the ISO 3095:2013 limit spectrum, 3.15 mm - 0.4 m (about 11.7 µm): the yardstick of a
+#: trolley record's level.
+ISO3095_LIMIT_RMS_UM = _iso3095_rms_um()
+#: A trolley record's RMS roughness (each rail, about its median) in µm within which no remark is made: from
+#: -32 dB to +39 dB re the ISO 3095 limit's RMS. Acoustically ground rails sit 10-20 dB below the limit; severe
+#: corrugation stands 20-30 dB above it in its band, and long-wave irregularity (to 1 m) adds up to a few hundred
+#: µm. Outside this range the record is logged and reported as implausible (WARNING, in the report).
+TROLLEY_RMS_PLAUSIBLE_UM = (0.3, 1000.0)
+#: Beyond these RMS levels [µm] a record is refused (RunFileError): below 0.1 µm (-41 dB re the limit's RMS, below
+#: any ground rail and at the displacement resolution of roughness trolleys), above 10 mm (+59 dB: a track-geometry
+#: record or a unit error). A unit mix-up moves the level by 60 dB (mm or nm as µm) or 120 dB (m as µm), so it
+#: lands here for any real rail.
+TROLLEY_RMS_LIMITS_UM = (0.1, 10_000.0)
+
+
+def _likely_unit(level_um: float) -> str:
+    """Which unit mix-up brings an implausible RMS level [µm] into the plausible range (empty when none)."""
+    lo, hi = TROLLEY_RMS_PLAUSIBLE_UM
+    for factor, what in ((1e3, "values in mm written under roughness_um"), (1e6, "values in m written under "
+                                                                                  "roughness_um"),
+                         (1e-3, "values in nm (or µm multiplied by 1000) written under roughness_um")):
+        if lo <= level_um * factor <= hi:
+            return f"; likely {what} ({level_um * factor:.3g} µm RMS once converted)"
+    return ""
+
+
+def _trolley_level(p: Path, out: pd.DataFrame) -> list[str]:
+    """Check each rail's RMS roughness against :data:`TROLLEY_RMS_LIMITS_UM` (RunFileError beyond) and
+    :data:`TROLLEY_RMS_PLAUSIBLE_UM` (returned remarks, logged as WARNINGs)."""
+    notes = []
+    for rail, g in out.groupby("rail", sort=True):
+        r = g["roughness_m"].to_numpy(float) * 1e6
+        if r.size < 2:
+            continue
+        level = float(np.sqrt(np.mean((r - np.median(r)) ** 2)))
+        rel = 20 * math.log10(level / ISO3095_LIMIT_RMS_UM) if level > 0 else -math.inf
+        what = (f"{p}: rail {rail}: RMS roughness {level:.3g} µm ({rel:+.0f} dB re the ISO 3095 limit's "
+                f"{ISO3095_LIMIT_RMS_UM:.1f} µm)")
+        lo, hi = TROLLEY_RMS_LIMITS_UM
+        if not lo <= level <= hi:
+            raise RunFileError(f"{what} is not a rail roughness record in µm (refused outside {lo:g}-{hi:g} µm)"
+                               f"{_likely_unit(level)}")
+        lo, hi = TROLLEY_RMS_PLAUSIBLE_UM
+        if not lo <= level <= hi:
+            note = (f"{what} is outside the {lo:g}-{hi:g} µm of real rails{_likely_unit(level)}; the comparison "
+                    "with it is doubtful")
+            log.warning("%s", note)
+            notes.append(note)
+    return notes
+
+
 def read_trolley(path) -> pd.DataFrame:
     """Read a trolley reference file: ``chainage_m, rail, roughness_um`` → columns in SI plus ``roughness_um``.
 
     Returns a frame with ``chainage_m, rail, roughness_m`` sorted by rail and chainage. Rows whose chainage or
-    roughness is not a number are left out and named (file line numbers) in a WARNING: the reference comparison
-    then sees a gap there and does not bridge it. A chainage given twice on one rail (two passes pasted into one
-    file) is a RunFileError, since which of the two readings holds cannot be told.
+    roughness is not a finite number are left out and named (file line numbers) in a WARNING: the reference
+    comparison then sees a gap there and does not bridge it. A chainage given twice on one rail (two passes pasted
+    into one file) is a RunFileError, since which of the two readings holds cannot be told. Each rail's level is
+    checked (:func:`_trolley_level`): a record many decades off a rail's roughness (mm, m or nm written as µm) is
+    a RunFileError naming the likely unit; one merely outside the range of real rails is a WARNING, kept in
+    ``attrs["notes"]`` of the frame for the report.
     """
     p = Path(path)
     if not p.is_file():
@@ -514,16 +601,28 @@ def read_trolley(path) -> pd.DataFrame:
         raise RunFileError(f"{p}: rail must be L or R, got {bad}")
     out = pd.DataFrame({"chainage_m": pd.to_numeric(df["chainage_m"], errors="coerce"), "rail": df["rail"],
                         "roughness_m": pd.to_numeric(df["roughness_um"], errors="coerce") * 1e-6})
-    bad_rows = out.index[out.isna().any(axis=1)]
+    # inf is no reading either (a logger's overflow, 'inf' in the file): left out like text, and named
+    finite = np.isfinite(out[["chainage_m", "roughness_m"]].to_numpy(float)).all(axis=1)
+    bad_rows = out.index[~finite]
+    notes = []
     if len(bad_rows):
-        log.warning("%s: %d trolley row(s) without a numeric chainage or roughness left out (file line(s) %s%s); "
-                    "the comparison interpolates across up to 5 missing samples, longer stretches are gaps", p,
-                    len(bad_rows), ", ".join(str(i + 2) for i in bad_rows[:10]), ", ..." if len(bad_rows) > 10 else "")
-    out = out.dropna().sort_values(["rail", "chainage_m"], kind="stable").reset_index(drop=True)
+        note = (f"{p}: {len(bad_rows)} trolley row(s) without a numeric chainage or roughness left out (file "
+                f"line(s) {', '.join(str(i + 2) for i in bad_rows[:10])}{', ...' if len(bad_rows) > 10 else ''}) "
+                "(text, blanks, NaN and inf are no reading); the comparison interpolates across up to 5 missing "
+                "samples, longer stretches are gaps")
+        log.warning("%s", note)
+        notes.append(note)
+    out = out[finite].sort_values(["rail", "chainage_m"], kind="stable").reset_index(drop=True)
+    if out.empty:
+        raise RunFileError(f"{p}: no trolley row with a finite numeric chainage and roughness ({len(df)} row(s) in "
+                           "the file); nothing to compare with")
     twice = out[out.duplicated(["rail", "chainage_m"], keep=False)]
     if len(twice):
         counts = twice.groupby(["rail", "chainage_m"], sort=True).size()
         (r, x), k = counts.index[0], int(counts.iloc[0])
         raise RunFileError(f"{p}: rail {r}: chainage {x:.4f} m is given {k} times ({len(counts)} repeated "
                            "chainage(s) in all); a trolley record holds one reading per rail and chainage")
+    notes += _trolley_level(p, out)
+    out.attrs["source"] = str(p)
+    out.attrs["notes"] = tuple(notes)
     return out

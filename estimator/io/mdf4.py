@@ -20,7 +20,7 @@ import numpy as np
 from estimator.errors import RunFileError
 from estimator.io.registry import RawChannel, RawRecording
 
-__all__ = ["sniff", "read_raw", "header_properties", "run_header"]
+__all__ = ["sniff", "read_raw", "header_properties", "run_header", "raw_header_comment", "RepeatedHeaderKey"]
 
 log = logging.getLogger("estimator")
 
@@ -29,12 +29,22 @@ def sniff(path: Path, head: bytes) -> bool:
     return head[:3] == b"MDF"
 
 
+class RepeatedHeaderKey(ValueError):
+    """A header comment that gives one property two different values."""
+
+
+def _local(tag) -> str:
+    """An element's tag without its XML namespace (``{http://www.asam.net/mdf/v4}e`` -> ``e``)."""
+    return tag.rsplit("}", 1)[-1] if isinstance(tag, str) else ""
+
+
 def header_properties(comment: str) -> dict[str, str]:
     """``<e name="key">value</e>`` entries of an MDF 4 header comment's ``<common_properties>``.
 
     A comment without markup holds no properties (``{}``). Raises ValueError when the comment is markup that does
-    not parse (an unescaped ``&``, a tag left open) or gives one key two values: the run's identity, date and
-    direction would otherwise be lost or chosen without a word.
+    not parse (an unescaped ``&``, a tag left open) and :class:`RepeatedHeaderKey` (a ValueError) when it gives one
+    key two values: the run's identity, date and direction would otherwise be lost or chosen without a word.
+    Elements are matched by their local name, so a comment in the ASAM namespace reads as one without.
     """
     if not comment or "<" not in comment:
         return {}
@@ -42,17 +52,19 @@ def header_properties(comment: str) -> dict[str, str]:
         root = ET.fromstring(comment)
     except ET.ParseError as exc:
         raise ValueError(f"the header comment is not valid XML ({exc})") from None
+    except RecursionError:
+        raise ValueError("the header comment is not valid XML (nested too deeply)") from None
     out: dict[str, str] = {}
     for el in root.iter():
-        if el.tag == "e" and el.get("name"):
+        if _local(el.tag) == "e" and el.get("name"):
             k, v = el.get("name"), (el.text or "").strip()
             if k in out and out[k] != v:
-                raise ValueError(f"the header comment gives {k!r} twice ({out[k]!r}, then {v!r})")
+                raise RepeatedHeaderKey(f"the header comment gives {k!r} twice ({out[k]!r}, then {v!r})")
             out[k] = v
     if not out:
         # asammdf keeps a comment it cannot parse as escaped text inside <TX>: properties written there are lost
         # unless said so
-        text = " ".join(el.text or "" for el in root.iter("TX"))
+        text = " ".join(el.text or "" for el in root.iter() if _local(el.tag) == "TX")
         if "common_properties" in text or "<e name=" in text:
             try:
                 ET.fromstring(text.strip())
@@ -62,10 +74,46 @@ def header_properties(comment: str) -> dict[str, str]:
     return out
 
 
+def raw_header_comment(mdf, path) -> str | None:
+    """The header block's comment as the file holds it (the MD/TX block's text), None when it has none or it
+    cannot be read.
+
+    asammdf's ``header.comment`` is not that text: asammdf parses the comment into a dictionary of common
+    properties and writes it back out, so a key the file gives twice comes back once (the last value). The
+    header block's ``comment_addr`` points at the block; :func:`asammdf.blocks.utils.get_text_v4` reads it.
+    """
+    from asammdf.blocks.utils import get_text_v4
+
+    addr = int(getattr(mdf.header, "comment_addr", 0) or 0)
+    if addr <= 0:
+        return None
+    try:
+        size = Path(path).stat().st_size
+        with open(path, "rb") as fh:
+            text = get_text_v4(addr, fh, file_limit=size)
+    except Exception:  # noqa: BLE001 - a block asammdf could not read either; its own reading decides below
+        return None
+    return text if isinstance(text, str) and text else None
+
+
 def run_header(mdf, path) -> dict[str, str]:
     """The run header of an open MDF 4 file (:func:`header_properties`); RunFileError naming ``path`` when the
-    comment cannot be read."""
+    comment cannot be read or gives a key twice.
+
+    The comment is read as the file holds it (:func:`raw_header_comment`), so that a repeated key is seen; when
+    that text holds no properties as XML (plain text, markup asammdf repairs), asammdf's reading of it is used.
+    """
     try:
+        raw = raw_header_comment(mdf, path)
+        if raw:
+            try:
+                props = header_properties(raw)
+            except RepeatedHeaderKey:
+                raise
+            except ValueError:
+                props = {}
+            if props:
+                return props
         return header_properties(mdf.header.comment or "")
     except ValueError as exc:
         raise RunFileError(f"{path}: {exc}; the run header (run_id, date, direction, ...) cannot be read") from None
@@ -118,7 +166,9 @@ def _read(mdf, path: Path, name: str, group: int, index: int) -> RawChannel | st
 
 
 def _same(a: RawChannel, b: RawChannel) -> bool:
-    return (a.unit == b.unit and a.t.shape == b.t.shape and np.array_equal(a.t, b.t)
+    if a is b:
+        return True
+    return (a.unit == b.unit and a.t.shape == b.t.shape and np.array_equal(a.t, b.t, equal_nan=True)
             and np.array_equal(a.values, b.values, equal_nan=True))
 
 

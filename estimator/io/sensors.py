@@ -17,6 +17,7 @@ Channel names are free: the estimator finds channels through this table.
 
 from __future__ import annotations
 
+import csv
 import math
 from pathlib import Path
 
@@ -72,13 +73,38 @@ def read_sensors(path) -> pd.DataFrame:
         raise FileNotFoundError(f"sensor table {p} does not exist")
     if p.stat().st_size > MAX_BYTES:
         raise SensorTableError(f"{p}: {p.stat().st_size} bytes; a sensor table is at most {MAX_BYTES} bytes")
+    raw = p.read_bytes()
+    if not raw.strip(b" \t\r\n\x00\xef\xbb\xbf"):
+        raise SensorTableError(f"{p}: the sensor table is empty ({len(raw)} bytes, no header line); expected a "
+                               f"header {','.join(SENSOR_COLUMNS)} and one row per recorded channel")
     try:
         df = pd.read_csv(p, sep=None, engine="python", encoding="utf-8-sig", dtype={"name": str, "side": str,
                                                                                       "direction": str, "unit": str,
                                                                                       "quantity": str})
-    except (pd.errors.ParserError, UnicodeDecodeError, pd.errors.EmptyDataError) as exc:
-        raise SensorTableError(f"{p}: not a readable CSV sensor table ({exc})") from None
+    except (pd.errors.ParserError, UnicodeDecodeError, pd.errors.EmptyDataError, csv.Error) as exc:
+        # csv.Error: the separator sniffer found no separator (one column, or no header line)
+        raise SensorTableError(f"{p}: not a readable CSV sensor table ({type(exc).__name__}: {exc}); expected a "
+                               f"header line {','.join(SENSOR_COLUMNS)} with a separator") from None
     return check_sensors(df, source=str(p))
+
+
+def _blank(v) -> bool:
+    """An empty cell (NaN as pandas reads it, or only blanks)."""
+    if isinstance(v, str):
+        return not v.strip()
+    try:
+        return bool(pd.isna(v))
+    except (TypeError, ValueError):
+        return False
+
+
+def _show(v) -> str:
+    """A cell as messages show it: ``an empty cell``, a number as written, text quoted."""
+    if _blank(v):
+        return "an empty cell"
+    if isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool):
+        return f"{float(v):g}"
+    return repr(v)
 
 
 def _num(df: pd.DataFrame, col: str, source: str, rows) -> np.ndarray:
@@ -86,7 +112,7 @@ def _num(df: pd.DataFrame, col: str, source: str, rows) -> np.ndarray:
     for i in rows:
         if not np.isfinite(vals[i]):
             raise SensorTableError(f"{source}: row {i + 2} ({df['name'].iloc[i]!r}): column {col!r} must be a finite "
-                                   f"number, got {df[col].iloc[i]!r}")
+                                   f"number, got {_show(df[col].iloc[i])}")
     return vals
 
 
@@ -153,12 +179,19 @@ def check_sensors(df: pd.DataFrame, source: str = "<sensor table>") -> pd.DataFr
                 f"(expected about {ref:g}, within -20/+25 %); the sensitivity is the factor giving "
                 f"{'m/s^2' if q == 'acceleration' else 'SI'} from the recorded values")
     df["sensitivity"] = sens
-    ws = pd.to_numeric(df["wheelset"], errors="coerce")
-    for i in acc:
-        if ws.iloc[i] not in (1, 2):
-            raise SensorTableError(f"{source}: row {i + 2} ({df['name'].iloc[i]!r}): wheelset must be 1 or 2 for an "
-                                   f"acceleration, got {df['wheelset'].iloc[i]!r}")
-    df["wheelset"] = ws.fillna(0).astype(int)
+    ws = pd.to_numeric(df["wheelset"], errors="coerce").astype(float)  # (a nullable Int64 column: NA -> NaN)
+    is_acc = df["quantity"].to_numpy() == "acceleration"
+    for i in range(len(df)):
+        if is_acc[i]:
+            if ws.iloc[i] not in (1, 2):
+                raise SensorTableError(f"{source}: row {i + 2} ({df['name'].iloc[i]!r}): wheelset must be 1 or 2 for "
+                                       f"an acceleration, got {_show(df['wheelset'].iloc[i])}")
+        elif not _blank(df["wheelset"].iloc[i]) and ws.iloc[i] not in (0, 1, 2):
+            # a speed, position or balise channel belongs to no wheelset: a value there is a slip (a shifted row)
+            raise SensorTableError(f"{source}: row {i + 2} ({df['name'].iloc[i]!r}): wheelset of a "
+                                   f"{df['quantity'].iloc[i]} channel must be empty (or 0, 1, 2), got "
+                                   f"{_show(df['wheelset'].iloc[i])}")
+    df["wheelset"] = ws.where(is_acc, 0).fillna(0).astype(int)
     for col, allowed in (("side", ("L", "R")), ("direction", ("x", "y", "z"))):
         vals = df[col].astype(str).str.strip()
         vals = vals.str.upper() if col == "side" else vals.str.lower()
@@ -168,6 +201,14 @@ def check_sensors(df: pd.DataFrame, source: str = "<sensor table>") -> pd.DataFr
                                        f"{allowed}, got {df[col].iloc[i]!r}")
         df[col] = vals.where(df["quantity"] == "acceleration", "")
     xyz = {c: _num(df, c, source, acc) for c in ("x", "y", "z")}
+    for c in ("x", "y", "z"):
+        # unused for speed, position and balise rows, but a value given there must still be a number: inf or text
+        # in a cell is a broken row (a shifted column), not something to drop without a word
+        for i in np.flatnonzero(~is_acc):
+            v = df[c].iloc[i]
+            if not _blank(v) and not np.isfinite(xyz[c][i]):
+                raise SensorTableError(f"{source}: row {i + 2} ({df['name'].iloc[i]!r}): column {c!r} must be empty "
+                                       f"or a finite number, got {_show(v)}")
     for c in ("x", "y", "z"):
         df[c] = xyz[c]
     for i in acc:
