@@ -227,18 +227,19 @@ def check_fe_for_model(fe: FEModes, *, total_mass: float | None = None, mass_mat
     """
     import warnings
 
-    from fem_import.checks import MassNormalisationError, check_mass_normalisation
+    from fem_import.checks import MassNormalisationError, check_mass_normalisation, rigid_body_modes
 
     f = np.asarray(fe.freqs_hz, float)
-    if expect == "wheelset" and f.size and not np.any(f < RIGID_BELOW_HZ):
+    if expect == "wheelset" and f.size and not np.any(f < RIGID_BELOW_HZ) and not rigid_body_modes(fe).indices:
         # a free wheelset's receptance below its first flexible mode is its rigid-body mass line (thesis eq. 2.28
         # with the rigid modes): without them the model is wrong there by orders of magnitude, and its mass cannot
         # be checked; many solvers leave them out when asked for modes from a frequency above 0 Hz
         raise MassNormalisationError(
             f"{fe.source or 'FE modes'}: the export holds no rigid-body modes (its lowest mode is at {f.min():.4g} Hz, "
-            f"none below {RIGID_BELOW_HZ:g} Hz): the model of a free wheelset needs its six rigid-body modes (its mass "
-            f"and inertia carry the receptance below the first flexible mode, and check the shapes' normalisation); "
-            f"export the modes from 0 Hz (e.g. Nastran EIGRL with V1 blank, Abaqus *FREQUENCY without a lower bound)")
+            f"none below {RIGID_BELOW_HZ:g} Hz, and {rigid_body_modes(fe).reason}): the model of a free wheelset "
+            f"needs its six rigid-body modes (its mass and inertia carry the receptance below the first flexible "
+            f"mode, and check the shapes' normalisation); export the modes from 0 Hz (e.g. Nastran EIGRL with V1 "
+            f"blank, Abaqus *FREQUENCY without a lower bound)")
     rb = check_mass_normalisation(fe, total_mass=total_mass, mass_matrix=mass_matrix)
     if rb is None or total_mass is not None or expect != "wheelset":
         return rb
@@ -310,6 +311,12 @@ def hybrid_model(
     origin = [""] * n_fe
     test_mode = np.full(n_fe, np.nan)
     rigid = np.flatnonzero(f_fe < rigid_below_hz)
+    found = _rigid_modes(fe)
+    if found and set(found) != set(rigid.tolist()):
+        # a free-free run shifted or on soft springs puts them at a few Hz; their shapes tell them (fem_import)
+        log.info("%s: rigid-body modes told by their shapes: %s", fe.source or "FE modes",
+                 ", ".join(f"{j + 1} ({f_fe[j]:.3g} Hz)" for j in found))
+        rigid = np.array(sorted(found), int)
     freqs[rigid], zeta[rigid] = 0.0, 0.0
     for j in rigid:
         origin[j] = "rigid"
@@ -354,10 +361,13 @@ def hybrid_model(
         else:
             raise ModelError(f"keep_fe must be 'none', 'unpaired', 'all' or FE mode numbers, got {keep_fe!r}")
     else:
-        keep = [int(k) - 1 for k in keep_fe]
-        bad = [k + 1 for k in keep if not 0 <= k < n_fe]
-        if bad:
-            raise ModelError(f"keep_fe: FE mode(s) {bad} not in the FE export (modes 1–{n_fe})")
+        # the numbers the export gives its modes (fem_import: FEModes.mode_numbers, 1..n when it gives none)
+        keep = []
+        for k in keep_fe:
+            try:
+                keep.append(fe.mode_index(int(k)))
+            except KeyError as exc:
+                raise ModelError(f"keep_fe: {exc.args[0]}") from None
     for j in keep:
         if origin[j] == "":
             freqs[j], zeta[j], origin[j] = f_fe[j], default_zeta, "fe"
@@ -380,7 +390,8 @@ def hybrid_model(
     if points:
         _warn_if_not_railway_frame(points, fe)
     sub = FEModes(fe.node_ids, fe.xyz, fe.elements, f_fe[kept], shapes[kept], fe.modal_mass[kept],
-                  source=fe.source, format=fe.format, units=fe.units, history=fe.history)
+                  source=fe.source, format=fe.format, units=fe.units, history=fe.history,
+                  mode_numbers=fe.mode_numbers[kept])
     n_test = sum(origin[j] == "test" for j in kept)
     return ModalModel(sub, freqs[kept], zeta[kept], tuple(origin[j] for j in kept), kept + 1, test_mode[kept],
                       points=points or {}, name=name, max_hz=max_hz,
@@ -398,3 +409,13 @@ def _warn_if_not_railway_frame(points: Mapping[str, Point], fe: FEModes) -> None
         check_railway_frame(points, fe, what=f"the hybrid model of {fe.source or 'the FE modes'}")
     except DofError as exc:
         log.warning("%s. The lab comparison in the FE's own frame is unaffected.", exc)
+
+
+def _rigid_modes(fe: FEModes) -> tuple[int, ...]:
+    """Positions of the six rigid-body modes told by their shapes (:func:`fem_import.rigid_body_modes`), or ()."""
+    from fem_import.checks import rigid_body_modes
+
+    try:
+        return tuple(rigid_body_modes(fe).indices)
+    except (ValueError, np.linalg.LinAlgError):
+        return ()

@@ -290,14 +290,17 @@ def test_uff_shape_node_absent_from_2411_is_named(tmp_path):
         fem_import.read(path)
 
 
-def test_uff_element_with_more_than_eight_nodes_is_refused(tmp_path):
+def test_uff_element_that_repeats_a_node_is_refused(tmp_path):
+    """An element listing one node twice is corrupt (the format's writers and Nastran refuse it too); elements of
+    more than 8 nodes themselves are read (tests/test_fe_exports_real.py)."""
     text = _uff_text(tmp_path)
     rigid = (f"{9:10d}{122:10d}{1:10d}{1:10d}{7:10d}{10:10d}\n" + "".join(f"{n:10d}" for n in [11, 12, 13, 14, 15,
              11, 12, 13]) + "\n" + f"{14:10d}{15:10d}\n")
     i2412 = text.index("  2412\n") + len("  2412\n")
     path = tmp_path / "big.uff"
     path.write_text(text[:i2412] + rigid + text[i2412:])
-    with pytest.raises(FEReadError, match=r"big\.uff, dataset 2412.*element 9 \(FE descriptor 122\) has 10 nodes"):
+    with pytest.raises(FEReadError, match=r"big\.uff, dataset 2412.*element 9 .*lists node\(s\) \[11, 12, 13, 14, 15\] "
+                                          r"more than once"):
         fem_import.read(path)
 
 

@@ -267,7 +267,7 @@ def total_mass(fe, rigid_below_hz: float = 1.0) -> float | None:
     """
     from fem_import.checks import rigid_body_mass
 
-    rb = rigid_body_mass(fe, rigid_below_hz)
+    rb = rigid_body_mass(fe)  # the rigid-body modes told by their shapes, whatever their frequencies
     if rb is not None:
         return float(rb.mass)
     rigid = np.flatnonzero(np.asarray(fe.freqs_hz) < rigid_below_hz)
