@@ -523,6 +523,15 @@ def test_a_reference_that_does_not_overlap_the_run_is_stated(tmp_path, estimate,
                                                              for n in summ["reference"]["notes"])
     html = files["report"].read_text()
     assert "does not overlap the run" in html and "No reference rail could be compared" in html
+    # the chainage written in mm: said so, with where it would lie in m
+    from estimator.reference import reference_overlap
+
+    p = _trolley(tmp_path / "mm.csv", x0=60.0, n=60_000)
+    tr = read_trolley(p)
+    tr["chainage_m"] *= 1000.0
+    (note,) = reference_overlap(estimate, reference_indexes(tr, source=str(p)))
+    assert "mm.csv: the reference (rail L 60000.0-119999.0 m" in note and \
+        "chainages in mm? they would cover rail L 60.0-120.0 m, rail R 60.0-120.0 m" in note
 
 
 def test_a_reference_with_no_comparable_rail_does_not_fail_the_written_estimate(tmp_path, estimate, caplog):
