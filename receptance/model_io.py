@@ -22,6 +22,8 @@ key                shape / type           content
 ``zeta``           float64 (m,)           modal damping ratios
 ``fe_mode``        int64 (m,)             1-based mode number in the FE export
 ``test_mode``      float64 (m,)           1-based paired test mode (NaN: none)
+``fe_mode_numbers`` int64 (m,)            the export's own numbers of the kept modes (optional: 1..n of the
+                                          export when absent, files before it)
 ``elem_id``        int64 (e,)             element labels (UFF 2412)
 ``elem_type``      int64 (e,)             FE descriptor id
 ``elem_prop``      int64 (e,)             physical property
@@ -94,7 +96,7 @@ def save_model(model: ModalModel, path: str | Path) -> Path:
         header=np.array(json.dumps(header)),
         node_ids=fe.node_ids, xyz=fe.xyz, shapes=fe.shapes, fe_freqs_hz=fe.freqs_hz,
         freqs_hz=model.freqs_hz, zeta=model.zeta, fe_mode=model.fe_mode.astype(np.int64),
-        test_mode=model.test_mode,
+        test_mode=model.test_mode, fe_mode_numbers=np.asarray(fe.mode_numbers, np.int64),
         elem_id=np.array([e.element_id for e in fe.elements], np.int64),
         elem_type=np.array([e.fe_descriptor for e in fe.elements], np.int64),
         elem_prop=np.array([e.physical_property for e in fe.elements], np.int64),
@@ -316,9 +318,11 @@ def load_model(path: str | Path) -> ModalModel:
     _finite_arrays(path, arrays)
     m = arrays["fe_freqs_hz"].size
     try:
+        numbers = arrays.get("fe_mode_numbers")
         fe = FEModes(arrays["node_ids"], arrays["xyz"], elements, arrays["fe_freqs_hz"], arrays["shapes"], np.ones(m),
                      source=h["fe_source"], format=h["fe_format"], units=h["fe_units"],
-                     history=tuple(h["fe_history"]))
+                     history=tuple(h["fe_history"]),
+                     mode_numbers=None if numbers is None else np.asarray(numbers))
         mods = []
         for i, d in enumerate(h["modifications"]):
             try:

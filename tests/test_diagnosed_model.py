@@ -51,6 +51,19 @@ def test_diagnosed_model_file_round_trip(lab, tmp_path):
     np.testing.assert_allclose(lowest(again, 20), lowest(joint, 20), rtol=1e-12)
 
 
+def test_the_exports_own_mode_numbers_survive_the_model_file(lab, tmp_path):
+    """An export that numbers its modes 101, 102, ... (a Nastran run from a restart, modes in another order): the
+    model file keeps the numbers; a file written before they were stored reads back as 1..m."""
+    hybrid, _ = lab
+    numbered = replace(hybrid, fe=replace(hybrid.fe, mode_numbers=np.arange(len(hybrid.fe)) + 101))
+    path = save_model(numbered, tmp_path / "numbered.npz")
+    np.testing.assert_array_equal(load_model(path).fe.mode_numbers, np.arange(len(hybrid.fe)) + 101)
+    with np.load(path, allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files if k != "fe_mode_numbers"}
+    np.savez_compressed(tmp_path / "before.npz", **arrays)
+    np.testing.assert_array_equal(load_model(tmp_path / "before.npz").fe.mode_numbers, np.arange(len(hybrid.fe)) + 1)
+
+
 def test_model_files_written_before_the_new_options_still_load(lab, tmp_path):
     """An old file's bearing has no ``remove_from_journal``/``carried_points`` and its bodies no
     ``carried_points``: it loads as it was written (mass taken off the journal, the axlebox node carried)."""
