@@ -199,17 +199,20 @@ def _norm_column(name: str) -> str:
     return re.sub(r"[^0-9a-z]+", "_", name.strip().lower()).strip("_")
 
 
+def unapplied_sensitivity_note(channels: list[str], what: str, limit: int = 8) -> str:
+    """The message for channels whose ``sensitivity`` is not applied because their ``what`` ("data are", "FRFs
+    are") are labelled in a physical unit (the front end converted them)."""
+    listed = ", ".join(channels[:limit]) + (f" and {len(channels) - limit} more" if len(channels) > limit else "")
+    return (f"the sensitivity of {len(channels)} channel{'s' if len(channels) > 1 else ''} is not applied: their "
+            f"{what} labelled in a physical unit, so the front end converted them already ({listed}); set the "
+            f"sensitivity to 1 for converted data, or export raw data (label V or none) to have it applied")
+
+
 def _rows_text(rows: list[int], limit: int = 8) -> str:
     """'rows 1-3, 7' for 0-based row positions (1-based in the text, runs collapsed, at most ``limit`` runs)."""
-    runs: list[list[int]] = []
-    for r in sorted(rows):
-        if runs and r == runs[-1][1] + 1:
-            runs[-1][1] = r
-        else:
-            runs.append([r, r])
-    parts = [f"{a + 1}" if a == b else f"{a + 1}-{b + 1}" for a, b in runs]
-    more = f", ... ({len(parts) - limit} more)" if len(parts) > limit else ""
-    return ("row " if len(rows) == 1 else "rows ") + ", ".join(parts[:limit]) + more
+    from fem_import.modes import number_ranges
+
+    return ("row " if len(rows) == 1 else "rows ") + number_ranges([r + 1 for r in sorted(rows)], limit)
 
 
 def _check_columns(df: pd.DataFrame, where: str, warn_extra: bool) -> None:

@@ -66,9 +66,11 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
+from fem_import.modes import number_ranges
 from fem_import.uff_text import DatasetSpan, fortran_field_problem, prepare_for_pyuff, unreadable_field
 
-from .channels import datasheet_like_sensitivity, read_channels, unit_key, unit_kind, validate_channels
+from .channels import (datasheet_like_sensitivity, read_channels, unapplied_sensitivity_note, unit_key, unit_kind,
+                       validate_channels)
 
 __all__ = [
     "HammerTest",
@@ -622,14 +624,7 @@ def _split_function_types(p: str, dsets: list[dict], wanted: set[int], purpose: 
 
 def _index_ranges(idx: list[int], limit: int = 6) -> str:
     """'1-3, 7, 9-12' (at most ``limit`` runs)."""
-    runs: list[list[int]] = []
-    for i in sorted(idx):
-        if runs and i == runs[-1][1] + 1:
-            runs[-1][1] = i
-        else:
-            runs.append([i, i])
-    parts = [f"{a}" if a == b else f"{a}-{b}" for a, b in runs]
-    return ", ".join(parts[:limit]) + (f", ... ({len(parts) - limit} more runs)" if len(parts) > limit else "")
+    return number_ranges(sorted(idx), limit)
 
 
 def _check_record6(d: dict, p: str) -> None:
@@ -1172,10 +1167,7 @@ def _unit_notes(p: str, rows: dict, scale: dict, has_sens: bool) -> list[str]:
                for k, (f, lab, kind) in scale.items()
                if has_sens and kind in ("physical", "unknown") and float(rows[k].sensitivity) != 1.0]
     if ignored:
-        note = (f"the sensitivity of {len(ignored)} channel{'s' if len(ignored) > 1 else ''} is not applied: their "
-                f"data are labelled in a physical unit, so the front end converted them already "
-                f"({_channel_list(ignored)}); set the sensitivity to 1 for converted data, or export raw data "
-                f"(label V or none) to have it applied")
+        note = unapplied_sensitivity_note(ignored, "data are")
         log.warning("%s: %s", p, note)
         notes.append(note)
     return notes

@@ -77,6 +77,7 @@ from .channels import (
     UNIT_TO_SI,
     datasheet_like_sensitivity,
     read_channels,
+    unapplied_sensitivity_note,
     unit_key,
     validate_channels,
 )
@@ -588,10 +589,7 @@ def read_frf_uff(path: str | os.PathLike, channels_csv=None, *, quantity: str | 
     if force_ignored:
         ignored.append(f"the force {in_labels[0]!r} ({', '.join(sorted(force_ignored))})")
     if ignored:
-        msg = (f"the sensitivity of {len(ignored)} channel{'s' if len(ignored) > 1 else ''} is not applied: "
-               f"their FRFs are labelled in physical units, so the front end converted them already "
-               f"({', '.join(ignored[:8])}{' ...' if len(ignored) > 8 else ''}); set the sensitivity to 1 for "
-               f"converted data")
+        msg = unapplied_sensitivity_note(ignored, "FRFs are")
         log.warning("%s: %s", src, msg)
         read_notes.append(msg)
     if dc_undefined:

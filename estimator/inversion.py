@@ -233,19 +233,12 @@ def sensor_model(model, channels: pd.DataFrame):
     model, labels : ModalModel, list of str
         ``labels[i]`` is ``"<channel name>:<direction>"``.
     """
-    pts = getattr(model, "points", {})
-    missing = [p for p in ("axlebox_L", "axlebox_R", "contact_L", "contact_R") if p not in pts]
-    if missing:
-        raise ChannelError(f"the wheelset model lacks point(s) {missing}; a field estimate needs the contact points and "
-                           f"axleboxes (points.csv of the lab: contact_L, axlebox_L, contact_R, axlebox_R); it has "
-                           f"{sorted(pts)}")
+    pts = _wheelset_points(model, "the wheelset model")
     axl, axr = pts["axlebox_L"], pts["axlebox_R"]
-    if axl.xyz is None or axr.xyz is None:
-        raise ChannelError("the model's axlebox points need coordinates (x, y, z) to place the accelerometers")
     try:  # the sensor table's x, y, z and the DOFs "...:z" are in the railway frame (DESIGN.md): so must the model be
         check_railway_frame(pts, getattr(model, "fe", None), what="the wheelset model")
     except DofError as exc:
-        raise ChannelError(str(exc)) from None
+        raise WheelsetModelError(str(exc)) from None
     # and in metres, the size of a railway wheelset (a model in mm inverts to roughness in metres)
     check_wheelset_geometry(model)
     centre = 0.5 * (np.asarray(axl.xyz) + np.asarray(axr.xyz))

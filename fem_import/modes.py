@@ -22,7 +22,7 @@ import numpy as np
 
 from .errors import FEGeometryError, MissingCoordinatesError, PointToleranceError
 
-__all__ = ["FEModes", "Element", "DOF_NAMES", "shapes_at_channels"]
+__all__ = ["FEModes", "Element", "DOF_NAMES", "shapes_at_channels", "number_ranges"]
 
 DOF_NAMES = ("ux", "uy", "uz", "rx", "ry", "rz")
 
@@ -141,7 +141,7 @@ class FEModes:
         hit = np.flatnonzero(self.mode_numbers == int(number))
         if hit.size == 0:
             raise KeyError(f"no mode numbered {number} in {self.source or 'the FE modes'} (mode numbers "
-                           f"{_ranges(self.mode_numbers.tolist())})")
+                           f"{number_ranges(self.mode_numbers.tolist())})")
         return int(hit[0])
 
     @property
@@ -391,8 +391,9 @@ class FEModes:
         return np.einsum("mpk,pk->pm", disp, d)
 
 
-def _ranges(numbers) -> str:
-    """``[1, 2, 3, 7]`` -> ``"1-3, 7"`` (in the order given)."""
+def number_ranges(numbers, limit: int | None = None) -> str:
+    """``[1, 2, 3, 7]`` -> ``"1-3, 7"``: runs of consecutive integers in the order given (sort first for sets), at
+    most ``limit`` runs (``", ... (k more runs)"``), for messages that name datasets, nodes, modes or rows."""
     out, run = [], []
     for n in numbers:
         if run and n == run[-1] + 1:
@@ -403,6 +404,8 @@ def _ranges(numbers) -> str:
         run = [n]
     if run:
         out.append(f"{run[0]}-{run[-1]}" if len(run) > 1 else str(run[0]))
+    if limit is not None and len(out) > limit:
+        return ", ".join(out[:limit]) + f", ... ({len(out) - limit} more runs)"
     return ", ".join(out)
 
 

@@ -81,7 +81,7 @@ import re
 import numpy as np
 
 from .errors import FEReadError
-from .modes import Element, FEModes
+from .modes import Element, FEModes, number_ranges
 from .registry import Geometry, register_format
 from .uff_text import DatasetSpan, fortran_field_problem, fortran_float, prepare_for_pyuff, unreadable_field
 
@@ -429,18 +429,8 @@ def _read_parts_with(path: str, readable: str, data: bytes, frames, *, want_mode
 
 
 def _ranges(numbers) -> str:
-    """``[1, 2, 3, 7]`` -> ``"1-3, 7"``."""
-    out, run = [], []
-    for n in sorted(numbers):
-        if run and n == run[-1] + 1:
-            run.append(n)
-            continue
-        if run:
-            out.append(f"{run[0]}-{run[-1]}" if len(run) > 1 else str(run[0]))
-        run = [n]
-    if run:
-        out.append(f"{run[0]}-{run[-1]}" if len(run) > 1 else str(run[0]))
-    return ", ".join(out)
+    """``[7, 1, 2, 3]`` -> ``"1-3, 7"``."""
+    return number_ranges(sorted(numbers))
 
 
 def _nodes(path, dset, kind, line) -> tuple[np.ndarray, np.ndarray, int, np.ndarray]:

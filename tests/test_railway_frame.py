@@ -196,14 +196,14 @@ def test_without_a_contact_position_the_fe_frame_is_kept_and_said(wheelset):
 def test_the_field_refuses_a_model_that_is_not_in_the_railway_frame(wheelset):
     """A model built from a CAD-frame FE without turning it: its ``:z`` DOFs are not vertical, so the estimator
     refuses it, naming the FE axes and the remedy; a rotation that is not proper is refused too."""
-    from estimator.errors import ChannelError
+    from estimator.errors import WheelsetModelError
     from estimator.inversion import sensor_model
 
     fe, points = wheelset
     fe_cad, pts_cad = _placed(fe, points, Q_CAD, (0.0, 0.0, 0.0))
     channels = pd.DataFrame({"name": ["ACC"], "side": ["L"], "x": [0.0], "y": [0.0], "z": [0.1],
                              "direction": ["z"]})
-    with pytest.raises(ChannelError, match=r"not in the railway frame .* railway x = \+Z, y = \+X, z = \+Y of the FE"):
+    with pytest.raises(WheelsetModelError, match=r"not in the railway frame .* railway x = \+Z, y = \+X, z = \+Y of the FE"):
         sensor_model(_model(fe_cad, pts_cad), channels)
     _, pts, fe2, _, _ = to_railway_frame(pts_cad, fe_cad)
     sensor_model(_model(fe2, pts), channels)
