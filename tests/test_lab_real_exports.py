@@ -23,6 +23,7 @@ import pytest
 
 import ema
 import real_exports_support as rs
+from bad_inputs_support import run
 from ema import ChannelDirectionWarning, ChannelMismatchError, ChannelTableError, FunctionTypeError, SamplingError
 from ema import UFFReadError, read_frf_uff, read_hammer
 from ema.estimate import EstimationError
@@ -49,13 +50,6 @@ def si(data, tmp_path_factory):
     return uff, csv, read_hammer(uff, csv)
 
 
-def run(argv, capsys):
-    try:
-        code = main(argv)
-    except SystemExit as exc:
-        code = exc.code
-    text = capsys.readouterr()
-    return code, text.out, text.err
 
 
 def identify(capsys, out, *args):
