@@ -1143,7 +1143,11 @@ def _unit_notes(p: str, rows: dict, scale: dict, has_sens: bool) -> list[str]:
     if applied:
         note = (f"sensitivity applied to {len(applied)} channel{'s' if len(applied) > 1 else ''} recorded raw "
                 f"(SI = recorded x sensitivity): {', '.join(applied)}")
-        log.info("%s: %s", p, note)
+        # data without any unit label are taken as raw by inference: say it where the user looks
+        unlabelled = any(kind == "raw" and f != 1.0 for f, _, kind in scale.values())
+        (log.warning if unlabelled else log.info)("%s: %s%s", p, note, "; the data carry no unit label, so they "
+                                                  "are taken as raw: if the front end converted them, set the "
+                                                  "sensitivity to 1" if unlabelled else "")
         notes.append(note)
     odd = [f"{rows[k].name!r} ({lab!r}, sensitivity {f:.6g})" for k, (f, lab, kind) in scale.items()
            if kind == "electrical" and datasheet_like_sensitivity(lab, f)]
