@@ -577,7 +577,10 @@ def read_frf_uff(path: str | os.PathLike, channels_csv=None, *, quantity: str | 
     if applied:
         msg = f"sensitivities applied to raw FRFs (SI = recorded x response sensitivity / force sensitivity): " \
               f"{', '.join(applied)}"
-        log.info("%s: %s", src, msg)
+        unlabelled = any("no label" in a for a in applied)  # raw by inference, not by an electrical label
+        (log.warning if unlabelled else log.info)(
+            "%s: %s%s", src, msg, "; FRFs without a unit label are taken as raw: if the front end converted them, "
+            "set the sensitivity to 1" if unlabelled else "")
         read_notes.append(msg)
     if datasheet:
         msg = (f"the sensitivities of the raw-voltage FRF(s) of {', '.join(datasheet[:8])}"
