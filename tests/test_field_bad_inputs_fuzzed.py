@@ -361,9 +361,12 @@ def test_a_sensor_row_not_on_its_sides_axlebox_is_refused_naming_the_row(tmp_pat
 
 
 def test_a_sensor_a_few_centimetres_off_the_axlebox_centre_is_accepted(model):
+    """Within the axlebox housing (0.15 m forward, 0.12 m up) a mounting is plausible: kept as written."""
     d = sensor_table()
     d = d.assign(x=d["x"].where(d["direction"] != "y", 0.15), z=d["z"].where(d["direction"] != "y", 0.12))
-    prepare(model, d)
+    fm = prepare(model, d)
+    lateral = fm.sensors[fm.sensors["direction"] == "y"]
+    assert len(lateral) and (lateral["x"] == 0.15).all() and (lateral["z"] == 0.12).all()
 
 
 # --------------------------------------------------------------------------------------------- S5, U3 line.json
