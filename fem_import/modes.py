@@ -22,9 +22,19 @@ import numpy as np
 
 from .errors import FEGeometryError, MissingCoordinatesError, PointToleranceError
 
-__all__ = ["FEModes", "Element", "DOF_NAMES", "shapes_at_channels", "number_ranges"]
+__all__ = ["FEModes", "Element", "DOF_NAMES", "UNIT_SYSTEMS", "shapes_at_channels", "number_ranges"]
 
 DOF_NAMES = ("ux", "uy", "uz", "rx", "ry", "rz")
+
+#: Consistent unit systems of FE solvers -> (file length units per metre, kg per file mass unit); the mass unit is
+#: force x s² / length: mm-t-s (N, the usual Nastran/Abaqus set for steel structures), mm-kg-s (mN), in-lbf-s
+#: (lbf s²/in = 175.1268 kg)
+UNIT_SYSTEMS: dict[str, tuple[float, float]] = {
+    "m-kg-s": (1.0, 1.0),
+    "mm-t-s": (1000.0, 1000.0),
+    "mm-kg-s": (1000.0, 1.0),
+    "in-lbf-s": (1.0 / 0.0254, 0.45359237 * 9.80665 / 0.0254),
+}
 
 
 @dataclass(frozen=True)
@@ -147,6 +157,36 @@ class FEModes:
     @property
     def has_rotations(self) -> bool:
         return self.shapes.shape[2] == 6
+
+    def in_si_units(self, system: str) -> "FEModes":
+        """The modes of a file written in the unit ``system`` (a key of :data:`UNIT_SYSTEMS`), in SI.
+
+        For a file that does not state its units (a Nastran punch and bulk deck, a UFF without dataset 164)
+        and was read as SI: coordinates are divided by the file's length factor ``L`` (file length units per
+        metre); mass-normalised shapes (``x = Φ q`` with kinetic energy ``q'²/2``, thesis eqs. 2.24, 2.29) have
+        translations in ``1/sqrt(mass)``, divided by ``sqrt(Mk)`` (``Mk`` kg per file mass unit), and rotations
+        in ``1/(length sqrt(mass))``, multiplied by ``L / sqrt(Mk)`` — the conversion the UFF reader applies for
+        a dataset 164. Frequencies are in Hz in every system listed.
+
+        Raises
+        ------
+        ValueError
+            An unknown system (the message lists them).
+        """
+        if system not in UNIT_SYSTEMS:
+            raise ValueError(f"unknown FE unit system {system!r}; known: {', '.join(UNIT_SYSTEMS)}")
+        length, mass = UNIT_SYSTEMS[system]
+        if length == 1.0 and mass == 1.0:
+            return self
+        shapes = self.shapes / np.sqrt(mass)
+        if self.has_rotations:
+            shapes[..., 3:] *= length
+        step = (f"declared in {system}: coordinates / {length:g}, translations / sqrt({mass:g})"
+                + (f", rotations * {length:g} / sqrt({mass:g})" if self.has_rotations else "") + " (to SI)")
+        return FEModes(self.node_ids, self.xyz / length, self.elements, self.freqs_hz, shapes, self.modal_mass,
+                       source=self.source, format=self.format,
+                       units=f"SI (m, kg, s), converted from {system} (declared)",
+                       history=self.history + (step,), mode_numbers=self.mode_numbers)
 
     def rotated(self, rotation, *, note: str = "") -> "FEModes":
         """The same modes in another Cartesian frame: ``x' = Q x`` for the proper rotation ``Q``.

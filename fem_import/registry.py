@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import FEReadError, UnknownFormatError
-from .modes import Element, FEModes
+from .modes import UNIT_SYSTEMS, Element, FEModes
 
 __all__ = ["FormatInfo", "Geometry", "register_format", "unregister_format", "formats", "format_info",
            "detect_format", "read", "read_geometry", "merge_geometry", "find_geometry_companion",
@@ -440,7 +440,8 @@ def find_geometry_companion(path) -> Path | None:
     return _companion_candidates(path)[0]
 
 
-def read_with_geometry(path, geometry=None, *, option: str = "--geometry", subcase=None) -> tuple[FEModes, str]:
+def read_with_geometry(path, geometry=None, *, option: str = "--geometry", subcase=None,
+                       units: str | None = None) -> tuple[FEModes, str]:
     """FE modes with node coordinates: from the file itself, from ``geometry``, or from a companion file.
 
     This is how the command line reads an FE export (``--fem``, ``--geometry``).
@@ -459,6 +460,13 @@ def read_with_geometry(path, geometry=None, *, option: str = "--geometry", subca
         only one, or the lowest with a WARNING naming the others when the
         file holds several (:func:`fem_import.punch.read_punch` with
         ``subcase="lowest"``; :func:`read` itself refuses to guess).
+    units : str, optional
+        The unit system of a file that does not state its units (a Nastran
+        punch and bulk deck, a UFF without dataset 164): a key of
+        :data:`fem_import.modes.UNIT_SYSTEMS` (``"mm-t-s"``...), applied to
+        the modes and the merged geometry (:meth:`FEModes.in_si_units`).
+        None: SI, as read. A file that states its units is refused with it
+        (the file's own statement is converted already).
 
     Returns
     -------
@@ -482,17 +490,31 @@ def read_with_geometry(path, geometry=None, *, option: str = "--geometry", subca
     elif subcase is not None:
         raise UnknownFormatError(f"{p}: subcase={subcase!r} applies to Nastran punch files; this file is "
                                  f"{info.name!r}", path=str(p), supported=tuple(_REGISTRY))
+    if units is not None and units not in UNIT_SYSTEMS:
+        raise ValueError(f"unknown FE unit system {units!r}; known: {', '.join(UNIT_SYSTEMS)}")
+
+    def declared(fe: FEModes, where: str) -> tuple[FEModes, str]:
+        if units is None:
+            return fe, where
+        from .checks import _units_stated
+
+        if _units_stated(fe):
+            raise FEReadError(p, f"the file states its units ({fe.units}), which the reader has converted to SI "
+                                 f"already; the declared unit system {units!r} is for files that do not state them "
+                                 f"(a Nastran punch and bulk deck, a UFF without dataset 164): leave it out")
+        return fe.in_si_units(units), f"{where}; units declared {units}, converted to SI"
+
     if geometry is not None:
         fe = read(p, info.name, geometry=geometry, **kwargs)
-        return fe, f"node coordinates from {geometry}"
+        return declared(fe, f"node coordinates from {geometry}")
     fe = read(p, info.name, **kwargs)
     if fe.has_coordinates:
-        return fe, f"node coordinates from {p.name}"
+        return declared(fe, f"node coordinates from {p.name}")
     companion, rejected = _companion_candidates(p)
     if companion is not None:
         log.info("%s has no node coordinates; using those of the companion file %s", p, companion)
-        return merge_geometry(fe, companion), (f"node coordinates from the companion file {companion} "
-                                               f"(pass {option} to choose another)")
+        return declared(merge_geometry(fe, companion), (f"node coordinates from the companion file {companion} "
+                                                        f"(pass {option} to choose another)"))
     names = "/".join(p.with_suffix(s).name for s in COMPANION_SUFFIXES[:3]) + f"/{p.with_suffix('.uff').name}"
     if rejected:
         found = "; ".join(f"{c.name} exists but is not used: {why}" for c, why in rejected)

@@ -212,8 +212,15 @@ def check_choice_list(parser: argparse.ArgumentParser, option: str, values, limi
 
 
 def add_geometry_argument(parser) -> None:
-    """``--geometry``: node coordinates for an FE export that has none (shared by every command reading an FE)."""
+    """``--geometry`` and ``--fe-units``: node coordinates and the unit system of an FE export that states neither
+    (shared by every command reading an FE)."""
+    from fem_import.modes import UNIT_SYSTEMS
+
     parser.add_argument("--geometry", default=None, type=existing_file("--geometry", "geometry"),
-                        help="node coordinates for an FE file without them (a Nastran punch): a UFF with dataset "
-                             "2411 or a Nastran bulk data file with GRID cards (default: a companion file of the "
+                        help="node coordinates and elements for an FE file without them (a Nastran punch): a UFF "
+                             "with datasets 2411/2412 or a Nastran bulk data file (default: a companion file of the "
                              "same name, .bdf/.dat/.nas/.uff)")
+    parser.add_argument("--fe-units", default=None, choices=tuple(UNIT_SYSTEMS),
+                        help="unit system of an FE export that does not state it (a Nastran punch and bulk deck, a "
+                             "UFF without dataset 164), converted to SI: e.g. mm-t-s, the usual Nastran set for "
+                             "steel (default: SI as read; a UFF with dataset 164 is converted by it)")

@@ -257,7 +257,7 @@ def _cmd_pair(args: argparse.Namespace) -> int:
     sets = [read_modeset(d) for d in args.modes]
     test = merge_setups(sets) if len(sets) > 1 else sets[0]
     step(f"{len(test)} test modes from {len(sets)} setup(s); reading {args.fem}")
-    fe, where = fem_import.read_with_geometry(args.fem, args.geometry)
+    fe, where = fem_import.read_with_geometry(args.fem, args.geometry, units=args.fe_units)
     step(where)
     pairing = pair_modes(test, fe, threshold=args.mac_min)
     with staged_output(out) as tmp:  # write last: --out gets the results only when everything succeeded

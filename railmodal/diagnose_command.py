@@ -106,7 +106,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
                         max_effects=args.max_effects, max_order=args.max_order, mac_min=args.mac_min,
                         description=args.description, n_averages=args.averages, frf_window_decay=args.window_decay,
                         workers=args.workers, geometry=args.geometry, total_mass=args.total_mass,
-                        progress=_progress_printer(args.quiet))
+                        fe_units=args.fe_units, progress=_progress_printer(args.quiet))
     for line in summarise(result):
         print(line)
     print(f"done in {time.perf_counter() - t0:.1f} s")

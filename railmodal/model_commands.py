@@ -121,7 +121,7 @@ def _cmd_build(args: argparse.Namespace) -> int:
         args._build_parser.error(f"at most {MAX_VALIDATION_FILES} --hammer files, got {len(hammers)}")
     # ---- validate every input before any work
     step(f"reading {args.fem}")
-    fe, where = fem_import.read_with_geometry(args.fem, args.geometry)
+    fe, where = fem_import.read_with_geometry(args.fem, args.geometry, units=args.fe_units)
     step(where)
     rb = check_fe_for_model(fe, total_mass=args.total_mass)
     if rb is not None:

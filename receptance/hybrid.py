@@ -250,8 +250,8 @@ def check_fe_for_model(fe: FEModes, *, total_mass: float | None = None, mass_mat
         raise MassNormalisationError(
             f"{src}: the rigid-body modes imply a wheelset mass of {rb.mass:.4g} kg, outside the physical range "
             f"{lo:g}–{hi:g} kg of a railway wheelset: the shapes are not mass-normalised (scaled by about "
-            f"{np.sqrt(np.sqrt(tlo * thi) / rb.mass):.3g}?) or not in SI units; give the true mass to check against "
-            f"(total_mass= / --total-mass)")
+            f"{np.sqrt(np.sqrt(tlo * thi) / rb.mass):.3g}?) or not in SI units{_unit_system_hint(fe, rb.mass)}; give "
+            f"the true mass to check against (total_mass= / --total-mass)")
     if not tlo <= rb.mass <= thi:
         warnings.warn(f"{src}: the rigid-body modes imply a wheelset mass of {rb.mass:.4g} kg, outside the typical "
                       f"{tlo:g}–{thi:g} kg; check the FE export's normalisation and units", UserWarning, stacklevel=2)
@@ -419,3 +419,19 @@ def _rigid_modes(fe: FEModes) -> tuple[int, ...]:
         return tuple(rigid_body_modes(fe).indices)
     except (ValueError, np.linalg.LinAlgError):
         return ()
+
+
+def _unit_system_hint(fe: FEModes, mass_kg: float) -> str:
+    """", as an FE in mm-t-s would (declare it: --fe-units mm-t-s)" when a solver's unit system read as SI explains a
+    wheelset mass outside the physical range (the file not stating its units), else ""."""
+    from fem_import.checks import _units_stated
+    from fem_import.modes import UNIT_SYSTEMS
+
+    if _units_stated(fe):
+        return ""
+    tlo, thi = WHEELSET_MASS_KG["typical"]
+    fits = [name for name, (_, mk) in UNIT_SYSTEMS.items() if mk != 1.0 and tlo <= mass_kg * mk <= thi]
+    if not fits:
+        return ""
+    return (f" — read in {fits[0]} it would weigh {mass_kg * UNIT_SYSTEMS[fits[0]][1]:.4g} kg: the file states no "
+            f"units; declare them (fem_import.read_with_geometry(..., units={fits[0]!r}) / --fe-units {fits[0]})")

@@ -382,3 +382,48 @@ def test_d16_free_format_numbers_are_named_as_not_fixed_columns(tmp_path):
     bad = unreadable_field(data, span)
     assert bad is not None and bad.record == 13 and bad.line == 15
     assert "not in the fixed columns of the format 6E13.5" in bad.cause and "free-format" in bad.cause
+
+
+# ------------------------------------------------------------------------------------------ declared FE units
+def test_a_nastran_export_in_mm_t_s_is_read_in_si_when_its_units_are_declared(tmp_path):
+    """The usual Nastran unit set for steel, mm-t-s, in a punch and bulk deck that cannot state it: read as SI the
+    wheelset weighs 1/1000 of itself and is refused, the message naming the system; declared (--fe-units mm-t-s)
+    the coordinates, translations and rotations come back to the SI export's to 1e-12 and its mass is the
+    wheelset's. Oracle: the hand-made lumped wheelset, exported in SI, converted to mm-t-s by the mass
+    normalisation's units (translations x sqrt(1000), rotations x sqrt(1000) / 1000)."""
+    from fem_import import MassNormalisationError, read_with_geometry
+    from fem_import.checks import rigid_body_mass
+    from lab_data.nastran_punch import write_punch_eigenvectors
+    from lumped_wheelset import build
+    from receptance.hybrid import check_fe_for_model
+
+    _, fe, _ = build("own_node", "ring")
+    shapes = fe.shapes * np.sqrt(1000.0)
+    shapes[..., 3:] /= 1000.0
+    pch = write_punch_eigenvectors(tmp_path / "ws.pch", fe.node_ids, fe.freqs_hz, shapes)
+    (tmp_path / "ws.bdf").write_text(fx.deck(fx.grids(fe.node_ids, fe.xyz * 1000.0)))
+    raw, _ = read_with_geometry(pch)
+    with pytest.raises(MassNormalisationError, match=r"read in mm-t-s it would weigh .* --fe-units mm-t-s"):
+        check_fe_for_model(raw)
+    si, where = read_with_geometry(pch, units="mm-t-s")
+    assert "units declared mm-t-s" in where and "mm-t-s (declared)" in si.units
+    np.testing.assert_allclose(si.xyz, fe.xyz, atol=1e-12)
+    np.testing.assert_allclose(si.shapes, fe.shapes, rtol=1e-6, atol=1e-9 * np.abs(fe.shapes).max())
+    assert rigid_body_mass(si).mass == pytest.approx(rigid_body_mass(fe).mass, rel=1e-5)
+    check_fe_for_model(si)
+
+
+def test_declared_units_are_refused_for_a_file_that_states_its_own(tmp_path):
+    from fem_import import FEReadError, read_with_geometry
+    from lab_data.uff_export import ElementRecord, write_fe_uff
+    from lumped_wheelset import build
+
+    _, fe, _ = build("own_node", "ring")
+    path = write_fe_uff(tmp_path / "si.uff", fe.node_ids, fe.xyz,
+                        [ElementRecord(e.element_id, e.fe_descriptor, 1, 1, 1, e.nodes) for e in fe.elements],
+                        fe.freqs_hz, fe.shapes, model_name="lumped")
+    with pytest.raises(FEReadError, match=r"states its units .* the declared unit system 'mm-t-s' is for files that "
+                                          r"do not state them"):
+        read_with_geometry(path, units="mm-t-s")
+    with pytest.raises(ValueError, match="unknown FE unit system 'cm-g-s'; known: m-kg-s, mm-t-s"):
+        read_with_geometry(path, units="cm-g-s")

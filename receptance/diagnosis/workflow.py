@@ -328,7 +328,7 @@ def run_lab_diagnosis(setups, fem: Path, points: Path, out: Path, *, band_hz: tu
                       description: WheelsetDescription | Path | str | None = None, n_averages: int | None = None,
                       frf_window_decay: float | None = None, workers: int | None = None,
                       geometry: Path | None = None, total_mass: float | None = None,
-                      progress: Callable[[str], None] | None = None) -> LabDiagnosis:
+                      progress: Callable[[str], None] | None = None, fe_units: str | None = None) -> LabDiagnosis:
     """Run the lab workflow on one or more setups and write the diagnosis, the diagnosed model and the report.
 
     Parameters
@@ -376,6 +376,9 @@ def run_lab_diagnosis(setups, fem: Path, points: Path, out: Path, *, band_hz: tu
         Node coordinates for an FE file without them (a Nastran punch): UFF
         2411 or Nastran GRID cards (default: a companion file of the same
         name; :func:`fem_import.read_with_geometry`).
+    fe_units : str, optional
+        The unit system of an FE export that does not state it (a key of
+        :data:`fem_import.modes.UNIT_SYSTEMS`, e.g. ``"mm-t-s"``); None: SI.
     total_mass : float, optional
         The wheelset's true mass [kg] as exported (with whatever axleboxes
         the FE holds): the rigid-body modes must give it within 5 %
@@ -460,7 +463,7 @@ def run_lab_diagnosis(setups, fem: Path, points: Path, out: Path, *, band_hz: tu
         tables.append(table)
     point_table = read_points(points)
     say(f"reading {fem}")
-    fe, where = fem_import.read_with_geometry(fem, geometry)
+    fe, where = fem_import.read_with_geometry(fem, geometry, units=fe_units)
     say(where)
     rb = check_fe_for_model(fe, total_mass=total_mass)
     if rb is not None:
