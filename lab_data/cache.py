@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Callable
 
 from .campaign import CampaignConfig, plan_campaign, write_campaign
+from .designs import get_design
 
 __all__ = ["cache_root", "campaign_dir", "cached_folder", "source_hash"]
 
@@ -66,12 +67,14 @@ def cached_folder(target: Path, complete: str, write: Callable[[Path], object], 
     return target
 
 
-def campaign_dir(scenario: str = "control", **config) -> Path:
+def campaign_dir(scenario: str = "control", design: str = "default", **config) -> Path:
     """Folder holding the campaign of ``scenario``, generating it first if needed.
 
     Parameters
     ----------
     scenario : str
+    design : str
+        The wheelset design (:data:`lab_data.designs.DESIGNS`); part of the cache key when not the default.
     **config
         Further :class:`~lab_data.campaign.CampaignConfig` fields, e.g.
         ``fe_export_hz=2000.0, fe_style="beam"``; every field, the export
@@ -84,7 +87,9 @@ def campaign_dir(scenario: str = "control", **config) -> Path:
         ``<setup>_channels.csv``, ``points.csv`` and ``truth.json``.
     """
     cfg = CampaignConfig(scenario=scenario, **config)
+    params = get_design(design)
     key = hashlib.sha256(json.dumps(asdict(cfg), sort_keys=True).encode()).hexdigest()[:12]
-    target = cache_root() / "lab" / f"{scenario}-{key}-{source_hash(Path(__file__).parent)}"
-    return cached_folder(target, "truth.json", lambda tmp: write_campaign(plan_campaign(cfg), tmp),
-                         f"campaign {scenario}")
+    name = scenario if design == "default" else f"{design}-{scenario}"
+    target = cache_root() / "lab" / f"{name}-{key}-{source_hash(Path(__file__).parent)}"
+    return cached_folder(target, "truth.json", lambda tmp: write_campaign(plan_campaign(cfg, params), tmp),
+                         f"campaign {name}")
