@@ -99,7 +99,9 @@ CHANNEL_QUANTITIES: dict[str, tuple[str, ...]] = {
 }
 #: Unit labels front-ends write (:func:`unit_key` form: lower case, no blanks, ``**`` and ``²`` as ``^2``) ->
 #: factor to the quantity's SI unit (data in g, kN, in/s^2, ...). ``s\ufffd`` is a latin-1/cp1252 ``s²``
-#: (Windows front ends) as pyuff decodes it (UTF-8 with replacement characters).
+#: (Windows front ends) as pyuff decodes it (UTF-8 with replacement characters). The first label of each factor
+#: is its canonical spelling. This is the toolkit's one unit table: the field sensor table reads its
+#: accelerations through it too (:mod:`estimator.io.sensors`), so a unit the lab knows the field knows.
 UNIT_TO_SI: dict[str, dict[str, float]] = {
     "acceleration": {"m/s^2": 1.0, "m/s2": 1.0, "m/s/s": 1.0, "m/sec^2": 1.0, "m/sec2": 1.0, "m/s\ufffd": 1.0,
                      "mm/s^2": 1e-3, "mm/s2": 1e-3, "mm/s\ufffd": 1e-3,
@@ -107,7 +109,9 @@ UNIT_TO_SI: dict[str, dict[str, float]] = {
                      "in/s\ufffd": 0.0254,
                      "ft/s^2": 0.3048, "ft/s2": 0.3048, "ft/s/s": 0.3048, "ft/sec^2": 0.3048, "ft/sec2": 0.3048,
                      "ft/s\ufffd": 0.3048,
-                     "g": 9.80665, "gn": 9.80665, "g0": 9.80665, "mg": 9.80665e-3},
+                     "g": 9.80665, "gn": 9.80665, "g0": 9.80665, "mg": 9.80665e-3,
+                     # spellings of data loggers (m·s⁻², g_n as the field's sensor tables write them)
+                     "ms-2": 1.0, "ms^-2": 1.0, "g_n": 9.80665},
     "force": {"n": 1.0, "newton": 1.0, "newtons": 1.0, "kn": 1e3, "dan": 10.0, "lbf": 4.4482216152605,
               "lb": 4.4482216152605, "lbs": 4.4482216152605, "kgf": 9.80665, "kp": 9.80665},
 }

@@ -10,7 +10,7 @@ from estimator.errors import ConfigurationError
 from receptance.contact import ContactParameters
 
 __all__ = ["EstimatorConfig", "MODELS", "MODEL_ALIASES", "EN13231_BANDS_MM", "EN13231_WINDOWS_M",
-           "DEFAULT_THRESHOLDS_UM", "parse_models"]
+           "DEFAULT_THRESHOLDS_UM", "WHEEL_WEAR_SEARCH", "parse_models"]
 
 #: the thesis's three transfer-function models (receptance names)
 MODELS = ("half", "vertical", "vertical_lateral")
@@ -23,6 +23,11 @@ EN13231_WINDOWS_M = {(10.0, 30.0): 0.15, (30.0, 100.0): 0.5, (100.0, 300.0): 1.5
 #: default peak-to-peak thresholds per band [µm] for the exceedance share (configurable; the values commonly
 #: quoted as EN 13231-3 acceptance limits of a reprofiled rail — check them against the edition you work to)
 DEFAULT_THRESHOLDS_UM = {(10.0, 30.0): 10.0, (30.0, 100.0): 10.0, (100.0, 300.0): 15.0, (300.0, 1000.0): 75.0}
+#: relative interval of the rolling circumference searched around the nominal one, new wheel -> fully worn:
+#: EN 15313 takes a wheel's last-turning diameter from its marking and the maintenance plan; a metro wheel is
+#: re-profiled down by 30-40 mm of diameter (820 -> ~780 mm: -4.9 %) before it is scrapped; +1 % allows a new
+#: wheel slightly above the model's radius and the odometer scale's error
+WHEEL_WEAR_SEARCH = (-0.05, 0.01)
 
 
 def parse_models(spec) -> tuple[str, ...]:
@@ -100,12 +105,21 @@ class EstimatorConfig:
     Space: ``wheelbase_m`` (None: measured from the data, see
     :func:`estimator.workflow.estimate_run`), ``comb_revolutions`` (length of
     the moving synchronous average of the wheel comb, in revolutions),
-    ``wheel_radius_m`` nominal rolling radius of the encoder (the
-    circumference starts from it times the balise-measured odometer scale and
-    is refined from the data within ``±radius_search``, default ±1 %: the
-    wear difference between the encoder's wheelset and the other, up to 4 mm
-    of radius; the peak's significance is a z-score against the rail-only
-    null, :data:`estimator.wheel.MIN_SIGNIFICANCE`, whatever the search).
+    ``wheel_radius_m`` nominal rolling radius [m] (None: the wheelset
+    model's, the contact points' distance from the axle's axis,
+    :func:`estimator.inversion.check_wheelset_geometry`; give a measured radius
+    for worn wheels, CLI ``--wheel-radius``). One radius serves the
+    circumference search, the curving model's contact angles and the Hertz
+    contact (``contact.wheel_rolling_radius`` follows it,
+    :func:`estimator.workflow.prepare`). The circumference starts from it times
+    the balise-measured odometer scale and is refined from the data over
+    ``radius_search``: relative ``(lo, hi)``, default
+    :data:`WHEEL_WEAR_SEARCH` (−5 %…+1 %, new to fully worn), or a float for a
+    symmetric ``±`` interval. A peak is accepted when its z-score against the
+    rail-only null reaches :data:`estimator.wheel.MIN_SIGNIFICANCE`, it stands
+    :data:`estimator.wheel.MIN_CONTRAST` times above every other candidate and
+    it is not at the edge of the interval; otherwise the odometer's
+    circumference is used and the estimate's processing history says why.
 
     Sleepers: ``sleeper_comb`` removes the sleeper-passing part, the
     parametric excitation of the discrete supports that repeats with the
@@ -143,8 +157,8 @@ class EstimatorConfig:
     sleeper_comb: bool = True
     sleeper_spacing_m: float | None = None
     sleeper_bays: int = 64
-    wheel_radius_m: float = 0.41
-    radius_search: float = 0.01
+    wheel_radius_m: float | None = None
+    radius_search: float | tuple[float, float] = WHEEL_WEAR_SEARCH
     bands_mm: tuple[tuple[float, float], ...] = EN13231_BANDS_MM
     thresholds_um: Mapping = field(default_factory=lambda: dict(DEFAULT_THRESHOLDS_UM))
     en15610_segment_m: float = 2.0
@@ -185,8 +199,18 @@ class EstimatorConfig:
         if self.sleeper_spacing_m is not None:
             _rng("sleeper_spacing_m", self.sleeper_spacing_m, 0.2, 5.0, unit="m")
         _rng("sleeper_bays", self.sleeper_bays, 2, 10_000)
-        _rng("wheel_radius_m", self.wheel_radius_m, 0.1, 1.0, unit="m")
-        _rng("radius_search", self.radius_search, 0.0, 0.1)
+        if self.wheel_radius_m is not None:
+            _rng("wheel_radius_m", self.wheel_radius_m, 0.1, 1.0, unit="m")
+        if isinstance(self.radius_search, (tuple, list)):
+            if len(self.radius_search) != 2:
+                raise ConfigurationError(f"radius_search must be a half-width or (lo, hi) relative to the nominal "
+                                         f"circumference, got {self.radius_search!r}")
+            lo, hi = self.radius_search
+            _rng("radius_search", lo, -0.2, 0.0, unit="(relative, lower end)")
+            _rng("radius_search", hi, 0.0, 0.2, unit="(relative, upper end)")
+            object.__setattr__(self, "radius_search", (float(lo), float(hi)))
+        else:
+            _rng("radius_search", self.radius_search, 0.0, 0.1)
         bands = tuple((float(a), float(b)) for a, b in self.bands_mm)
         for a, b in bands:
             if not 0 < a < b:

@@ -220,7 +220,9 @@ def check_run(run: Run, track: OdometryTrack, config: EstimatorConfig = Estimato
     ):
         if flag.any():
             events.extend(_events(kind, "*", flag, t, chain, reason, merge))
-    events.extend(e for e in track.events if e.kind in ("odometry_jump", "odometry_inconsistent", "odometry_gap"))
+    # odometry_scale: a run whose odometer scale no two balises correct (its chainage drifts; nothing is masked)
+    events.extend(e for e in track.events if e.kind in ("odometry_jump", "odometry_inconsistent", "odometry_gap",
+                                                        "odometry_scale"))
     run_mask = still | slow | reverse | untrusted
     masked |= run_mask[None, :]
     saturated &= ~run_mask[None, :]

@@ -14,7 +14,13 @@ chainage:
    (the scale error of that stretch, corrected retroactively); before the
    first and after the last passage the nearest stretch's scale is used
    (without any balise: the odometer as recorded). This removes the run's
-   start offset and the scale error between balises;
+   start offset and the scale error between balises. A run with fewer than
+   two balise passages has no stretch to measure the scale on: it stays 1,
+   and an ``odometry_scale`` finding (action ``uncorrected``) states the
+   stretch and the chainage uncertainty it implies (``max_scale_error`` ×
+   the distance from the balise, or from the run's start); the estimator
+   then takes the scale from the lead/trail lag when the wheelbase is known
+   (:func:`rescaled`);
 3. a stretch whose implied scale error exceeds ``max_scale_error`` (an
    odometry fault, not wheel wear) is not trusted: it is **masked** and
    logged (chainages, the implied error), and kept at scale 1; so is a
@@ -42,14 +48,14 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from estimator.errors import OdometryError
 from estimator.run import Odometry, QCEvent
 
-__all__ = ["OdometryTrack", "odometry_track", "spatial_step", "nice_step"]
+__all__ = ["OdometryTrack", "odometry_track", "rescaled", "spatial_step", "nice_step"]
 
 log = logging.getLogger("estimator")
 
@@ -81,6 +87,9 @@ class OdometryTrack:
         Findings (resets corrected, implausible stretches masked).
     travel_sign : int
         +1 travelling towards increasing chainage.
+    scale_source : str
+        What set ``scale``: ``"balises"`` (two or more passages), ``"odometer"`` (fewer: the odometer's own
+        scale, uncorrected) or what :func:`rescaled` was given (the lead/trail lag over a known wheelbase).
     """
 
     t: np.ndarray
@@ -91,6 +100,7 @@ class OdometryTrack:
     events: tuple[QCEvent, ...]
     travel_sign: int
     untrusted: tuple[tuple[float, float], ...] = field(default_factory=tuple)
+    scale_source: str = "balises"
 
     def chainage_at(self, t) -> np.ndarray:
         """Chainage [m] at times ``t`` (linear between odometry samples: < 0.1 mm at 100 Hz and 1 m/s²)."""
@@ -264,12 +274,67 @@ def odometry_track(odo: Odometry, travel_sign: int, *, max_scale_error: float = 
         events.append(QCEvent("odometry_reset", "*", tb, tb,
                               f"balise at {cb:.2f} m: odometer jump {jump:+.3f} m corrected "
                               f"(scale distributed over the stretch before)", "corrected", cb, cb))
+    scale_source = "balises"
+    if len(anchors) < 2:
+        # nothing measures the odometer's scale (wheel wear, slip: a few tenths of a per cent, up to
+        # max_scale_error): the chainage drifts from the one reference the run has by that share of the distance
+        scale_source = "odometer"
+        events.append(_scale_event(t, ch, rs, max_scale_error))
     speed = speed * sc
     moving = np.abs(speed) > 0.5
     if travel_sign < 0 and moving.any() and np.median(speed[moving]) < 0:
         speed = -speed  # a speed channel signed along chainage: make it positive along the direction of travel
     return OdometryTrack(t=t.copy(), chainage=ch, speed=speed, scale=sc, resets=tuple(rs), events=tuple(events),
-                         travel_sign=int(travel_sign), untrusted=tuple(untrusted))
+                         travel_sign=int(travel_sign), untrusted=tuple(untrusted), scale_source=scale_source)
+
+
+def _scale_reference(t: np.ndarray, chainage: np.ndarray, resets) -> tuple[float, float, str]:
+    """(time, chainage, name) of the one point a run without two balises has its chainage right at: its balise,
+    else its start (where the odometer's reading is taken as it is)."""
+    if resets:
+        tb, cb = float(resets[0]["t_s"]), float(resets[0]["balise_m"])
+        return tb, cb, f"the balise at {cb:.2f} m"
+    return float(t[0]), float(chainage[0]), f"the run's start ({float(chainage[0]):.2f} m, no balise)"
+
+
+def _scale_event(t: np.ndarray, chainage: np.ndarray, resets, max_scale_error: float) -> QCEvent:
+    """The finding of a run whose odometer scale no two balises correct (module docstring, step 2)."""
+    _, c_ref, ref = _scale_reference(t, chainage, resets)
+    far = float(np.max(np.abs(chainage - c_ref)))
+    lo, hi = float(np.min(chainage)), float(np.max(chainage))
+    return QCEvent("odometry_scale", "*", float(t[0]), float(t[-1]),
+                   f"{len(resets)} balise passage(s): the odometer's scale error is not corrected over "
+                   f"{lo:.1f}-{hi:.1f} m (scale kept at 1); the chainage is uncertain by up to +/-"
+                   f"{100 * max_scale_error:g} % of the distance from {ref}, +/-{max_scale_error * far:.2f} m "
+                   f"{far:.0f} m away (a worn wheel's 0.4 % is {0.004 * far:.2f} m there)", "uncorrected", lo, hi)
+
+
+def rescaled(track: OdometryTrack, scale: float, source: str) -> OdometryTrack:
+    """``track`` with the odometer scale ``scale`` where no two balises measured it (a new track).
+
+    The chainage is stretched about the one point it is right at — the run's balise, else its start
+    (:func:`_scale_reference`) — and the speed with it; the ``odometry_scale`` finding becomes ``corrected``
+    and names ``source`` (e.g. the lead/trail lag over the drawing's wheelbase).
+
+    Raises
+    ------
+    ValueError
+        ``track``'s scale was set by balises (``scale_source`` not ``"odometer"``), or ``scale`` is not a
+        positive number.
+    """
+    if track.scale_source != "odometer":
+        raise ValueError(f"the odometer scale is already set by {track.scale_source}: not rescaled")
+    if not (math.isfinite(scale) and scale > 0):
+        raise ValueError(f"odometer scale must be a positive number, got {scale!r}")
+    t_ref, c_ref, ref = _scale_reference(track.t, track.chainage, track.resets)
+    c_at = float(track.chainage_at(t_ref))
+    ch = c_at + scale * (track.chainage - c_at)
+    event = QCEvent("odometry_scale", "*", float(track.t[0]), float(track.t[-1]),
+                    f"{len(track.resets)} balise passage(s): odometer scale {scale:.5f} ({100 * (scale - 1):+.2f} %) "
+                    f"from {source}, applied about {ref}", "corrected", float(np.min(ch)), float(np.max(ch)))
+    events = tuple(e for e in track.events if e.kind != "odometry_scale") + (event,)
+    return replace(track, chainage=ch, speed=track.speed * scale, scale=track.scale * scale, events=events,
+                   scale_source=source)
 
 
 _SERIES = (1.0, 2.0, 2.5, 5.0)

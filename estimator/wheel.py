@@ -26,6 +26,19 @@ and −3 (with gaps) stay below 4.5 over a ±1 % search; the virtual line's
 wheels, 6 dB below the rail, reach 118–278 and their fit is within 0.002 %
 of the true circumference (:data:`MIN_SIGNIFICANCE` sits between).
 
+**Acceptance is also relative.** A periodic wheel makes ``J`` peak not only at
+``C`` but, weaker, at every ``C' = (p/q) C``, where every ``q``-th multiple of
+``C'`` falls on one of ``C`` (``1/q`` of the peak; 20/19 C is 5.3 % off). When
+the search interval misses ``C`` (a nominal radius 2 % off for the wheel on
+the train), such a shadow peak reaches a z-score of 20–45 on the virtual
+line, well above :data:`MIN_SIGNIFICANCE`, and the comb ran at the wrong
+period (+0.9…+1.6 dB in the EN 13231-3 bands). The fitted circumference is
+therefore accepted only when its peak also stands :data:`MIN_CONTRAST` times
+above the best candidate outside its own lobe (the shadows are a twentieth of
+the true peak; two neighbouring shadows are about equal) and lies at least
+one lobe inside the interval (a peak at the edge is a slope whose top lies
+outside). :attr:`CircumferenceFit.verdict` says which test failed.
+
 **Comb (notch at every rotation order).** :func:`comb` estimates the
 periodic part at each revolution as the mask-weighted average of the same
 angle over the neighbouring revolutions, with triangular weights
@@ -60,6 +73,10 @@ from estimator.inversion import cubic_sample
 
 #: z-score against the whitened null (module docstring) a circumference peak must reach
 MIN_SIGNIFICANCE = 10.0
+#: how many times the best candidate outside the peak's lobe the peak must reach (module docstring: a shadow
+#: peak at (p/q) C is about 1/q of the true one, q >= 20 within the wear search, and neighbouring shadows are
+#: within 10 % of each other; a weak true wheel at z = 10 has its runner-up at the null's maximum, z ~ 4.5)
+MIN_CONTRAST = 2.0
 #: highest wheel order reported
 MAX_ORDER = 100
 
@@ -75,6 +92,10 @@ class CircumferenceFit:
     nominal_m: float
     significance: float
     revolutions: int
+    #: z-score of the best candidate outside the peak's lobe (0: none searched)
+    runner_up: float = 0.0
+    #: the peak lies within one lobe of an end of the search interval
+    at_edge: bool = False
 
     @property
     def radius_m(self) -> float:
@@ -82,8 +103,23 @@ class CircumferenceFit:
 
     @property
     def found(self) -> bool:
-        """The peak stands out of the rail-only null by at least :data:`MIN_SIGNIFICANCE` (z-score)."""
-        return self.significance >= MIN_SIGNIFICANCE
+        """The peak stands out of the rail-only null by at least :data:`MIN_SIGNIFICANCE` (z-score), by
+        :data:`MIN_CONTRAST` times every other candidate, and not at the edge of the search (module docstring)."""
+        return not self.verdict
+
+    @property
+    def verdict(self) -> str:
+        """Why the peak is not accepted (``""`` when it is)."""
+        if self.significance < MIN_SIGNIFICANCE:
+            return f"no clear wheel periodicity (significance {self.significance:.1f} < {MIN_SIGNIFICANCE:g})"
+        if self.significance < MIN_CONTRAST * self.runner_up:
+            return (f"the best peak ({self.circumference_m:.4f} m, significance {self.significance:.1f}) is not "
+                    f"{MIN_CONTRAST:g} times above the next candidate (significance {self.runner_up:.1f}): a shadow "
+                    f"of a circumference outside the search, or an ambiguous wheel")
+        if self.at_edge:
+            return (f"the peak ({self.circumference_m:.4f} m, significance {self.significance:.1f}) lies at the edge "
+                    f"of the search: the circumference is probably outside it")
+        return ""
 
 
 def _whitened(x: np.ndarray, dx: float, order_spacing: float, shortest_m: float) -> np.ndarray:
@@ -109,7 +145,7 @@ def _whitened(x: np.ndarray, dx: float, order_spacing: float, shortest_m: float)
     return sfft.irfft(X, nfft, axis=-1)[..., :n]
 
 
-def circumference(profile: np.ndarray, dx: float, nominal_m: float, *, search: float = 0.015,
+def circumference(profile: np.ndarray, dx: float, nominal_m: float, *, search=0.015,
                   shortest_m: float = 0.02, max_multiples: int = 100) -> CircumferenceFit:
     """Rolling circumference from the periodicity of a wheelset's irregularity (module docstring).
 
@@ -121,11 +157,22 @@ def circumference(profile: np.ndarray, dx: float, nominal_m: float, *, search: f
         Grid step [m].
     nominal_m : float
         Circumference from the nominal radius [m].
-    search : float
-        Relative half-width of the search.
+    search : float or (float, float)
+        Relative half-width of the search, or its relative ends ``(lo, hi)`` around ``nominal_m``
+        (``(-0.05, 0.01)``: a new wheel's circumference down to a fully worn one's,
+        :data:`estimator.config.WHEEL_WEAR_SEARCH`).
     shortest_m : float
         Shortest wavelength kept for the autocorrelation [m].
+
+    Returns
+    -------
+    CircumferenceFit
+        The best candidate, its z-score, the runner-up's and whether it sits at the search's edge
+        (:attr:`CircumferenceFit.found`, :attr:`CircumferenceFit.verdict`).
     """
+    lo, hi = (-float(search), float(search)) if np.ndim(search) == 0 else (float(search[0]), float(search[1]))
+    if not lo <= 0 <= hi:
+        raise ValueError(f"the circumference search ({lo:+g}, {hi:+g}) must contain the nominal circumference")
     p = np.atleast_2d(profile)
     shortest = max(shortest_m, 4 * dx)  # the grid carries 4 samples per wavelength at least
     w = np.isfinite(p).astype(float)
@@ -143,7 +190,8 @@ def circumference(profile: np.ndarray, dx: float, nominal_m: float, *, search: f
     valid_len = w.any(axis=0).sum() * dx
     K = int(max(1, min(max_multiples, math.floor(0.5 * valid_len / nominal_m))))
     step = 0.1 / (K * nominal_m / shortest)  # a tenth of the peak width of the highest order kept
-    rel = np.arange(-search, search + step / 2, step)
+    # the grid is anchored at the nominal circumference, whatever the interval's ends
+    rel = step * np.arange(math.ceil(lo / step - 1e-9), math.floor(hi / step + 1e-9) + 1)
     cands = nominal_m * (1 + rel)
     m = np.arange(1, K + 1)
     lags = (cands[:, None] * m[None, :]) / dx
@@ -156,7 +204,14 @@ def circumference(profile: np.ndarray, dx: float, nominal_m: float, *, search: f
     overlap = cubic_sample(den[None, :], (cands[best] * m / dx)) * dx
     sd = math.sqrt(float(np.sum(1.0 / (2 * band * np.maximum(overlap, dx)))))
     sig = float(J[best]) / sd
-    return CircumferenceFit(float(cands[best]), float(nominal_m), float(sig), K)
+    # the runner-up lies outside the peak's lobe: the first multiple's autocorrelation peak is about ``shortest``
+    # wide in C, the K-th one ``shortest / K`` (ten grid steps), which is also the edge zone
+    far = np.abs(cands - cands[best]) > shortest
+    runner_up = float(np.max(J[far])) / sd if far.any() else 0.0
+    edge = int(math.ceil(shortest / K / (step * nominal_m)))
+    # (an interval narrower than two lobes fixes the circumference rather than searching it: no edge to judge)
+    at_edge = bool(J.size > 2 * edge + 1 and (best < edge or best > J.size - 1 - edge))
+    return CircumferenceFit(float(cands[best]), float(nominal_m), float(sig), K, max(runner_up, 0.0), at_edge)
 
 
 def _weights(R: int) -> np.ndarray:

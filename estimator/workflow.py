@@ -17,9 +17,14 @@ run into a :class:`~estimator.results.FieldEstimate`:
    each curve), blended along the curve transitions;
 6. wheelbase: given, or measured by cross-correlating the leading and
    trailing wheelsets' (whitened) estimates of the same rails (they see the
-   same roughness ``a`` apart); then, with ``bogie_coupling``, each
+   same roughness ``a`` apart; rail by rail, over wavelengths longer than a
+   few contact patches); with the wheelbase given and fewer than two balises
+   in the run, that lag gives the odometer's scale
+   (:func:`estimator.spatial.rescaled`); then, with ``bogie_coupling``, each
    wheelset is inverted again with the rail deflection the other wheelset's
-   contact forces cause under it (:func:`estimator.inversion.rail_coupling`);
+   contact forces cause under it (:func:`estimator.inversion.rail_coupling`;
+   the forces from the other wheelset's same model, else its richest one,
+   what they lack stated);
    the other wheelset's samples masked only for clipping enter that
    coupling term as recorded (full scale), up to ``MAX_COUPLING_SATURATED_SHARE``
    of them, rather than dropping the coupling for the whole run;
@@ -63,14 +68,16 @@ from estimator.qc import check_run, glitches
 from estimator.results import FieldEstimate, ProfileEstimate
 from estimator.run import Run
 from estimator.sleepers import SleeperPassing, quasi_static_orders, sleeper_comb
-from estimator.spatial import OdometryTrack, nice_step, odometry_track, spatial_step
+from estimator.spatial import OdometryTrack, nice_step, odometry_track, rescaled, spatial_step
 from estimator.standards.en13231 import band_indexes, exceedance
 from estimator.standards.en15610 import roughness_spectrum
-from estimator.wheel import CircumferenceFit, circumference, comb, wheel_roughness
+from estimator.wheel import MIN_SIGNIFICANCE, CircumferenceFit, circumference, comb, wheel_roughness
+from receptance.contact import ContactParameters
 from receptance.track import track_frf
 from receptance.trackform import Trackform
 
-__all__ = ["FieldModel", "prepare", "in_service", "estimate_run", "transfer_classes", "WHEELBASE_RANGE_M",
+__all__ = ["FieldModel", "prepare", "with_wheel_radius", "in_service", "estimate_run", "transfer_classes",
+           "WHEELBASE_RANGE_M",
            "WHEELBASE_MIN_CORRELATION"]
 
 log = logging.getLogger("estimator")
@@ -80,6 +87,10 @@ WHEELBASE_RANGE_M = (1.2, 4.0)
 #: smallest normalised correlation between the two wheelsets' estimates for a measured wheelbase
 WHEELBASE_MIN_CORRELATION = 0.3
 _PRIMARY = ("vertical_lateral", "vertical", "half")
+#: what a wheelset inverted without the rail coupling costs, measured on the virtual line (nominal, curve 1, its
+#: corrugated rail, leading wheelset, vertical + lateral model, 1 m windows)
+UNCOUPLED_EFFECT = ("on the virtual line's corrugated curve +4.6 dB in 30-100 mm instead of +1.0 dB coupled; "
+                    "100-300 mm unaffected")
 #: grid step of the circumference search [m] (the wheel's orders with wavelengths >= 20 mm)
 CIRCUMFERENCE_STEP_M = 0.005
 #: Largest share of the run whose samples of the other wheelset may be masked for clipping alone (the clipped
@@ -273,12 +284,37 @@ def prepare(model, sensors, *, line=None, trackform: Trackform | None = None,
     # model and sensor table against each other before any run is read: a wheelset in metres (not mm), and every
     # accelerometer on its side's axlebox (not x and y swapped, not near the middle of the axle)
     what = f"model {model}" if isinstance(model, (str, Path)) else f"model {getattr(m, 'name', '') or '(object)'!r}"
-    check_wheelset_geometry(m, what)
+    geometry = check_wheelset_geometry(m, what)
     check_sensor_mounting(m, table, str(sensors) if isinstance(sensors, (str, Path)) else "<sensor table>")
     ln = read_line(line) if isinstance(line, (str, Path)) else line
+    cfg = with_wheel_radius(cfg, geometry, what)
     contact = cfg.contact.contact()
     return FieldModel(m, table, ln, trackform, cfg, contact.stiffness, contact.semi_axis_x,
                       CurvingModel(rolling_radius_m=cfg.wheel_radius_m))
+
+
+def with_wheel_radius(cfg: EstimatorConfig, geometry: dict, what: str = "the wheelset model") -> EstimatorConfig:
+    """``cfg`` with its nominal wheel radius resolved and carried into the Hertz contact.
+
+    The radius is ``cfg.wheel_radius_m`` when given (a measured, worn wheel), else the model's rolling radius:
+    the mean distance of its contact points from the axle's axis (``geometry`` of
+    :func:`estimator.inversion.check_wheelset_geometry`). One radius serves the circumference search, the curving
+    model (thesis eq. 2.12 angles) and ``contact.wheel_rolling_radius`` (Hertz stiffness and patch, thesis
+    eq. 2.5): a wheel 2 cm smaller than assumed otherwise shifts the comb's period onto a shadow peak
+    (:mod:`estimator.wheel`) and the contact stiffness by 1 %.
+    """
+    model_r = 0.5 * (geometry["rolling_radius_L_m"] + geometry["rolling_radius_R_m"])
+    r = float(cfg.wheel_radius_m) if cfg.wheel_radius_m is not None else model_r
+    source = "given" if cfg.wheel_radius_m is not None else "the model's contact points"
+    default_contact_r = ContactParameters.__dataclass_fields__["wheel_rolling_radius"].default
+    c_r = cfg.contact.wheel_rolling_radius
+    if c_r != default_contact_r and abs(c_r - r) > 1e-6:
+        # an explicit contact radius that disagrees with the wheel's: the wheel radius wins (one wheel), said aloud
+        log.warning("%s: the contact's wheel_rolling_radius %.4f m is replaced by the nominal wheel radius %.4f m "
+                    "(%s); set wheel_radius_m (--wheel-radius) to change both", what, c_r, r, source)
+    log.info("%s: nominal wheel radius %.4f m (%s; the model's rolling radius %.4f m)", what, r, source, model_r)
+    contact = cfg.contact if c_r == r else replace(cfg.contact, wheel_rolling_radius=r)
+    return cfg.replace(wheel_radius_m=r, contact=contact)
 
 
 # --------------------------------------------------------------------------- helpers
@@ -389,27 +425,64 @@ def _class_weights(fm: FieldModel, kind: str, chain: np.ndarray, orient: Orienta
 transfer_classes = _class_weights
 
 
+#: The lead/trail correlation uses wavelengths of at least this many contact-patch lengths (2 a_x). Shorter
+#: waves reach the two wheelsets' estimates differently — averaged over each wheel's own Hertz patch, mixed with
+#: each wheel's own roughness and the sensors' noise, near the track's pinned-pinned resonance at high rates —
+#: and, the spectra being whitened, each such one-third octave would weigh as much as a coherent one. A band tied
+#: to the patch (~50 mm for a_x = 5.2 mm) rather than to the sampling rate keeps the correlation what the rails
+#: make it at any fs. Measured on the virtual line (nominal, 400-800 m, vertical model): over the whole band 0.57,
+#: 0.56, 0.40, 0.49 at 0.5, 1, 2, 2.5 kHz (one 2 kHz run at the 0.3 threshold); from 52 mm 0.67, 0.75, 0.75, 0.76,
+#: the wheelbase within 0.3 mm of the vehicle's (tests/test_field_bogie_coupling.py).
+WHEELBASE_PATCH_LENGTHS = 5.0
+#: preference among a wheelset's estimates of a rail for the lead/trail correlation
+_WHEELBASE_KINDS = ("vertical", "vertical_lateral", "half")
+
+
+def _wheelbase_rails(tis: Mapping, orient: Orientation) -> dict[str, dict[int, tuple[tuple[int, str], int]]]:
+    """Per rail both wheelsets estimate: ``{rail: {w: ((w, kind), row of that rail in its estimate)}}``.
+
+    The two wheelsets of a bogie roll on the same rail on each vehicle side (``orient.rail_of_side``), but an
+    estimate's rows are the vehicle sides it has (``TimeIrregularity.sides``): a half model of a wheelset
+    without its left vertical channel holds rail R in row 0. Pairing by rail, not by row, compares the same rail.
+    """
+    out: dict[str, dict[int, tuple[tuple[int, str], int]]] = {}
+    for w in (1, 2):
+        for side in "LR":
+            key = next((k for k in _WHEELBASE_KINDS if (w, k) in tis and side in tis[(w, k)].sides), None)
+            if key is not None:
+                out.setdefault(orient.rail_of_side[side], {})[w] = ((w, key), tis[(w, key)].sides.index(side))
+    return {rail: by_w for rail, by_w in sorted(out.items()) if len(by_w) == 2}
+
+
 def _estimate_wheelbase(fm: FieldModel, tis: Mapping, track: OdometryTrack, orient: Orientation, lam_min: float
-                        ) -> tuple[float | None, float]:
-    """Wheelbase [m] from the lag between the two wheelsets' estimates of the same rails (and the correlation)."""
-    kind = next((k for k in ("vertical", "vertical_lateral", "half") if (1, k) in tis and (2, k) in tis), None)
-    if kind is None:
-        return None, 0.0
+                        ) -> tuple[float | None, float, tuple[str, ...]]:
+    """Wheelbase [m] from the lag between the two wheelsets' estimates of the same rails, the normalised
+    correlation at that lag, and the rails correlated (empty: no rail estimated on both wheelsets).
+
+    Each rail both wheelsets estimate (:func:`_wheelbase_rails`) enters with its whitened spectrum over the
+    wavelengths from ``max(λ_min, WHEELBASE_PATCH_LENGTHS · 2 a_x)`` (the Hertz patch, thesis eq. 2.5) to the
+    shortest wheelbase searched.
+    """
+    pairs = _wheelbase_rails(tis, orient)
+    if not pairs:
+        return None, 0.0, ()
+    lam_lo = max(lam_min, WHEELBASE_PATCH_LENGTHS * 2 * fm.semi_axis_m)
     dx = max(lam_min / 2, 0.005)
     t_of = _chainage_to_time(track, 0.0)
     lo = np.nanmin(track.chainage)
     hi = np.nanmax(track.chainage)
     x = np.arange(lo, hi, dx)
     ts = t_of(x)
-    prof = {w: tis[(w, kind)].sample(ts) for w in (1, 2)}
+    sampled = {key: tis[key].sample(ts) for by_w in pairs.values() for key, _ in by_w.values()}
     # ws1 leads ws2 along the front direction: r1(x) = r2(x + f a), f the sign of ws1's offset
     f = orient.wheelset_offset_sign[1]
     num = np.zeros(0)
     norm_total = 0.0
     n = sfft.next_fast_len(2 * x.size)
     k = sfft.rfftfreq(n, dx)
-    for side in range(min(prof[1].shape[0], prof[2].shape[0])):
-        a, b = prof[1][side], prof[2][side]
+    for by_w in pairs.values():
+        (key1, row1), (key2, row2) = by_w[1], by_w[2]
+        a, b = sampled[key1][row1], sampled[key2][row2]
         wa, wb = np.isfinite(a), np.isfinite(b)
         a0, b0 = np.where(wa, a - np.nanmean(a), 0.0), np.where(wb, b - np.nanmean(b), 0.0)
         # whitened (each spectrum over its one-third-octave RMS): a narrow-band corrugation would otherwise give
@@ -418,8 +491,11 @@ def _estimate_wheelbase(fm: FieldModel, tis: Mapping, track: OdometryTrack, orie
         for Z in (A, B):  # floor at -60 dB of the peak: what the inversion band left empty stays empty
             env = _log_smooth_rms(k, np.abs(Z))
             Z /= np.maximum(env, 1e-3 * env.max() + 1e-300)
-        A[k < 1.0 / WHEELBASE_RANGE_M[0]] = 0.0  # waves longer than the shortest wheelbase searched: no sharp peak
-        B[k < 1.0 / WHEELBASE_RANGE_M[0]] = 0.0
+        # waves longer than the shortest wheelbase searched give no sharp peak; waves shorter than a few contact
+        # patches differ between the wheelsets (WHEELBASE_PATCH_LENGTHS)
+        outside = (k < 1.0 / WHEELBASE_RANGE_M[0]) | (k > 1.0 / lam_lo)
+        A[outside] = 0.0
+        B[outside] = 0.0
         a0, b0 = sfft.irfft(A, n)[:x.size] * wa, sfft.irfft(B, n)[:x.size] * wb
         c = sfft.irfft(sfft.rfft(b0, n) * np.conj(sfft.rfft(a0, n)), n)  # c[l] = Σ a(x) b(x + l)
         num = c if num.size == 0 else num + c
@@ -428,7 +504,7 @@ def _estimate_wheelbase(fm: FieldModel, tis: Mapping, track: OdometryTrack, orie
     lags = np.where(lags > num.size // 2, lags - num.size, lags) * dx
     sel = (f * lags >= WHEELBASE_RANGE_M[0]) & (f * lags <= WHEELBASE_RANGE_M[1])
     if not sel.any():
-        return None, 0.0
+        return None, 0.0, tuple(pairs)
     idx = np.flatnonzero(sel)
     k = idx[int(np.argmax(num[idx]))]
     peak = num[k]
@@ -440,7 +516,33 @@ def _estimate_wheelbase(fm: FieldModel, tis: Mapping, track: OdometryTrack, orie
     else:
         off = 0.0
     a_est = abs(lags[k] + off * dx)
-    return a_est, float(peak / norm_total) if norm_total > 0 else 0.0
+    return a_est, float(peak / norm_total) if norm_total > 0 else 0.0, tuple(pairs)
+
+
+def _odometer_scale_from_wheelbase(fm: FieldModel, tis: Mapping, track: OdometryTrack, orient: Orientation,
+                                   lam_min: float, wheelbase_m: float) -> tuple[OdometryTrack, str]:
+    """The track with the odometer's scale from the lead/trail lag over a known wheelbase, or the track as it is
+    and why not.
+
+    The two wheelsets see the same rail ``a`` apart; on a chainage that counts odometer metres (scale 1: fewer
+    than two balises, :func:`estimator.spatial.odometry_track`) that lag reads ``a / s``, ``s`` the odometer's
+    scale. With the drawing's ``a`` given, ``s = a / lag`` (on the virtual line 1/1.0045 against the truth's
+    1/1.0041: 0.04 % over the run, where the uncorrected 0.41 % drifted 1 m in 240 m). A scale beyond
+    ``max_scale_error`` is a wrong lag or a wrong drawing value, not wear: not applied.
+    """
+    lag, contrast, rails = _estimate_wheelbase(fm, tis, track, orient, lam_min)
+    if not rails:
+        return track, "no rail is estimated on both wheelsets, so the lead/trail lag cannot measure it"
+    if lag is None or contrast < WHEELBASE_MIN_CORRELATION:
+        return track, (f"the lead/trail lag cannot measure it (correlation {contrast:.2f} < "
+                       f"{WHEELBASE_MIN_CORRELATION})")
+    scale = wheelbase_m / lag
+    if abs(scale - 1) > fm.config.max_scale_error:
+        return track, (f"the lead/trail lag {lag:.4f} m over the given wheelbase {wheelbase_m:.3f} m implies a "
+                       f"scale error of {100 * (scale - 1):+.2f} %, beyond +/-{100 * fm.config.max_scale_error:g} %: "
+                       f"check the wheelbase")
+    return rescaled(track, scale, f"the lead/trail lag {lag:.4f} m over the given wheelbase {wheelbase_m:.3f} m "
+                                  f"(correlation {contrast:.2f}, rail(s) {', '.join(rails)})"), ""
 
 
 def _grid(track: OdometryTrack, offset: float, dx: float) -> np.ndarray:
@@ -502,6 +604,31 @@ def _coupling_valid(run, idx_o: np.ndarray, w: int, wo: int, steps: list) -> np.
            f"excess enters wheelset {w}'s estimate through the coupling term only")
     _say_once(run, steps, msg)
     return loose
+
+
+def _coupling_gaps(w: int, kind: str, wo: int, ko: str, classes, sides: tuple[str, ...],
+                   sides_o: tuple[str, ...], orient: Orientation) -> list[str]:
+    """What of wheelset ``wo``'s contact forces wheelset ``w``'s coupling term lacks with ``wo``'s model ``ko``.
+
+    The term is ``C F'`` (:func:`estimator.inversion.rail_coupling`): ``F'`` one force per side of ``wo`` along
+    its contact normal. A vertical or half model has no lateral channel and takes the normal as vertical: its
+    force is the vertical one, and the share ``sin θ_s sin θ' α_y(a) F'`` of a contact angle ``θ_s`` of ``w``
+    (vertical + lateral model in a curve) is unknown. A half model of a wheelset missing one side's vertical
+    channel has no force on that side's rail: no coupling there.
+    """
+    out = []
+    if kind == "vertical_lateral" and ko != "vertical_lateral":
+        th = max(abs(math.degrees(a)) for _, pair, _ in classes for a in pair)
+        if th > 0:
+            out.append(f"{w}/{kind}'s rail coupling takes wheelset {wo}'s vertical contact forces from its {ko} model "
+                       f"(no lateral channel on wheelset {wo}): the lateral component of wheelset {wo}'s forces is "
+                       f"unknown and its share of the rail deflection under wheelset {w} (sin θ sin θ' times the "
+                       f"rail's lateral transfer receptance, contact angles up to {th:.1f} deg here) is left out")
+    for s in sides:
+        if s not in sides_o:
+            out.append(f"{w}/{kind}'s rail coupling has no force of wheelset {wo} on rail {orient.rail_of_side[s]} "
+                       f"(its {ko} model has no vertical channel on side {s}): no coupling on that rail")
+    return out
 
 
 def _say_once(run, steps: list, msg: str) -> None:
@@ -575,9 +702,10 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
     skipped: list[str] = []
     plans_by_w: dict[int, list] = {}
     edges: dict[int, float] = {}
+    chains: dict[int, np.ndarray] = {}  # each wheelset's chainage per sample (its transfer classes, and coupling's)
     for w in run.wheelsets:
         chans = run.wheelset_channels(w)
-        chain_w = track.chainage_at(t_run) + orient.wheelset_offset_sign[w] * wb_guess / 2
+        chain_w = chains[w] = track.chainage_at(t_run) + orient.wheelset_offset_sign[w] * wb_guess / 2
         plans = []
         for kind in cfg.models:
             try:
@@ -595,8 +723,13 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
         plans_by_w[w], edges[w] = plans, edge_w
     kinds_of = {w: {kind for kind, *_ in plans} for w, plans in plans_by_w.items()}
     coupling = cfg.bogie_coupling and len(plans_by_w) == 2
+    # fewer than two balises leave the odometer's scale unmeasured; with the wheelbase given (a drawing value) the
+    # lead/trail lag in odometer metres measures it (below), from the uncoupled estimates of both wheelsets
+    scale_from_wb = cfg.wheelbase_m is not None and track.scale_source == "odometer" and all(kinds_of.values()) \
+        and len(kinds_of) == 2
     # with a given wheelbase the uncoupled pass would only be thrown away: a coupled pair is inverted once, below
-    defer = coupling and cfg.wheelbase_m is not None
+    # (every model of a wheelset whose partner has any model: the coupling takes the partner's forces from it)
+    defer = coupling and cfg.wheelbase_m is not None and not scale_from_wb and all(kinds_of.values())
     for w, plans in plans_by_w.items():
         for kind, sub, classes, transfers in plans:
             conds = []
@@ -604,7 +737,7 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
                 conds.append(condition_by_band(tr).assign(trackform=t, theta_L_deg=math.degrees(th[0]),
                                                           theta_R_deg=math.degrees(th[1])))
             conditioning[(w, kind)] = pd.concat(conds, ignore_index=True)
-            if defer and all(kind in k for k in kinds_of.values()):
+            if defer:
                 continue
             idx = sub["row"].to_numpy(int)
             valid = ~run.mask.masked[idx].any(axis=0)
@@ -621,69 +754,129 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
                  f"(Tikhonov alpha {cfg.regularisation:g})")
     # ---- wheelbase
     t0 = time.perf_counter()
+    scale_why = "give the wheelbase (wheelbase_m / --wheelbase) for the lead/trail lag to measure it"
     if cfg.wheelbase_m is not None:
         wb, wb_src = cfg.wheelbase_m, "given"
+        if scale_from_wb:
+            track, scale_why = _odometer_scale_from_wheelbase(fm, tis, track, orient, lam_min, wb)
+            if track.scale_source != "odometer":
+                # the QC table and every chainage below carry the corrected scale
+                fixed = tuple(e for e in track.events if e.kind == "odometry_scale")
+                run = run.with_mask(replace(run.mask, events=tuple(e for e in run.mask.events
+                                                                   if e.kind != "odometry_scale") + fixed),
+                                    f"chainage: {fixed[0].reason}")
+                log.info("%s: %s", run.source, fixed[0].reason)
     else:
-        est, contrast = _estimate_wheelbase(fm, tis, track, orient, lam_min)
+        est, contrast, rails = _estimate_wheelbase(fm, tis, track, orient, lam_min)
+        if len(run.wheelsets) > 1 and not rails:
+            have = "; ".join(f"wheelset {w}: rail(s) " + (", ".join(sorted({orient.rail_of_side[s] for (ww, _), ti
+                                                                          in tis.items() if ww == w
+                                                                          for s in ti.sides})) or "none")
+                             for w in run.wheelsets)
+            raise WheelbaseError(f"{run.source}: no rail instrumented on both wheelsets ({have}): the lead/trail "
+                                 f"lag cannot be measured; give --wheelbase (wheelbase_m)")
         if est is None or contrast < WHEELBASE_MIN_CORRELATION:
             if len(run.wheelsets) > 1:
                 raise WheelbaseError(
                     f"{run.source}: the wheelbase could not be measured from the data (lead/trail correlation "
-                    f"{contrast:.2f} < {WHEELBASE_MIN_CORRELATION}); give it (wheelbase_m / --wheelbase)")
+                    f"{contrast:.2f} < {WHEELBASE_MIN_CORRELATION} on rail(s) {', '.join(rails)}); give it "
+                    f"(wheelbase_m / --wheelbase)")
             raise WheelbaseError(f"{run.source}: one instrumented wheelset: give the wheelbase (wheelbase_m / "
                                      "--wheelbase) to place it along chainage")
         wb, wb_src = est, f"measured (lead/trail cross-correlation {contrast:.2f})"
+        scale_why = ("the wheelbase is measured, in odometer metres, from the same lag: give the drawing's "
+                     "(wheelbase_m / --wheelbase) for the lag to measure the scale")
     steps.append(f"wheelbase {wb:.3f} m ({wb_src})")
+    if track.scale_source == "odometer":
+        uncorrected = next(e for e in track.events if e.kind == "odometry_scale")
+        _say_once(run, steps, f"chainage: {uncorrected.reason}; {scale_why}")
     timings["wheelbase"] = time.perf_counter() - t0
     # ---- the rail couples the bogie's two wheelsets: each inversion again with the other's contact forces
     if coupling:
         t0 = time.perf_counter()
-        coupled, holes = [], []
+        coupled, holes, alone_why, other_model = [], [], {}, []
         for w, wo in ((1, 2), (2, 1)):
             other = {kind: sub for kind, sub, _, _ in plans_by_w.get(wo, [])}
+            # every model inverts the other wheelset's contact forces (B⁺_α a', WheelsetTransfer.P: one per vehicle
+            # side along its contact normal), whichever of its channels it uses: the same model's when the other
+            # wheelset has it (both then assume the same wheelset dynamics; on the virtual line's curve a pair of
+            # different models reads ~1 dB higher in 30-100 mm), else its richest model with data
+            sources = [k for k in _PRIMARY if k in other and ((wo, k) in tis or defer)]
             for kind, sub, classes, transfers in plans_by_w.get(w, []):
                 idx = sub["row"].to_numpy(int)
                 valid = ~run.mask.masked[idx].any(axis=0)
-                deferred = defer and kind in other
-                if kind in other and ((w, kind) in tis and (wo, kind) in tis or deferred):
-                    sub_o = other[kind]
-                    trs_o = [fm.transfer(kind, sub_o.drop(columns="row"), fs, t, th) for t, th, _ in classes]
-                    cps = [fm.coupling(tr, tro, t, wb) for (t, _, _), tr, tro in zip(classes, transfers, trs_o)]
+                if not ((w, kind) in tis or defer):
+                    continue  # no valid stretch of its own
+                for ko in sorted(sources, key=lambda k: k != kind):
+                    cls, trs = classes, transfers
+                    if ko == "vertical_lateral" and kind != "vertical_lateral":
+                        # the other's normal forces depend on its contact angles: this wheelset's transfer (the same
+                        # at every angle) is taken once per angle class of the other's
+                        cls = _class_weights(fm, ko, chains[w], orient, orient.role(w))
+                        trs = [fm.transfer(kind, sub.drop(columns="row"), fs, t, th) for t, th, _ in cls]
+                    sub_o = other[ko]
+                    trs_o = [fm.transfer(ko, sub_o.drop(columns="row"), fs, t, th) for t, th, _ in cls]
+                    # C[s, s'] couples the same rail only (rail_coupling): with θ' = 0 (a vertical or half model of the
+                    # other) its vertical force alone enters, cos θ_s α_z(a) F'_z
+                    cps = [fm.coupling(tr, tro, t, wb) for (t, _, _), tr, tro in zip(cls, trs, trs_o)]
                     idx_o = sub_o["row"].to_numpy(int)
                     valid_o = _coupling_valid(run, idx_o, w, wo, steps)
-                    ti = invert(run.acceleration[idx], run.t0, fs, valid, transfers, [c[2] for c in classes],
+                    ti = invert(run.acceleration[idx], run.t0, fs, valid, trs, [c[2] for c in cls],
                                 edge_s=max(edges.values()),
                                 coupled=(run.acceleration[idx_o], valid_o, trs_o, cps))
-                    if ti.valid_time > 0:
-                        tis[(w, kind)] = ti
-                        coupled.append(f"{w}/{kind}")
-                        lost = float(np.count_nonzero(valid & ~valid_o)) / fs
-                        if lost > 0:
-                            holes.append(f"{w}/{kind} {lost:.1f} s")
+                    if ti.valid_time <= 0:
                         continue
-                if deferred:
-                    # no stretch valid on both wheelsets: this wheelset alone, as without the coupling
-                    ti = invert(run.acceleration[idx], run.t0, fs, valid, transfers, [c[2] for c in classes],
-                                edge_s=edges[w])
-                    if ti.valid_time > 0:
-                        tis[(w, kind)] = ti
+                    tis[(w, kind)] = ti
+                    coupled.append(f"{w}/{kind}")
+                    if ko != kind:
+                        other_model.append(f"{w}/{kind} from {wo}/{ko}")
+                    lost = float(np.count_nonzero(valid & ~valid_o)) / fs
+                    if lost > 0:
+                        holes.append(f"{w}/{kind} {lost:.1f} s")
+                    for note in _coupling_gaps(w, kind, wo, ko, cls, trs[0].sides, trs_o[0].sides, orient):
+                        _say_once(run, steps, note)
+                    break
+                else:
+                    if not other:
+                        alone_why[(w, kind)] = f"wheelset {wo} has no model estimated"
+                    elif not sources:
+                        alone_why[(w, kind)] = f"no model of wheelset {wo} has a valid stretch long enough"
                     else:
-                        skipped.append(f"wheelset {w}, {kind}: no valid stretch long enough after quality control")
+                        alone_why[(w, kind)] = "no stretch long enough valid on both wheelsets"
+                    if defer:
+                        # this wheelset alone, as without the coupling
+                        ti = invert(run.acceleration[idx], run.t0, fs, valid, transfers, [c[2] for c in classes],
+                                    edge_s=edges[w])
+                        if ti.valid_time > 0:
+                            tis[(w, kind)] = ti
+                        else:
+                            skipped.append(f"wheelset {w}, {kind}: no valid stretch long enough after quality "
+                                           f"control")
         steps.append(f"rail coupling of the two wheelsets {wb:.3f} m apart (Timoshenko rail transfer receptance) "
-                     f"added for {', '.join(coupled) or 'none'}")
+                     f"added for {', '.join(coupled) or 'none'}" + (
+                         f"; the other wheelset's contact forces from its same model, except "
+                         f"{', '.join(other_model)}" if other_model else
+                         "; the other wheelset's contact forces from its same model" if coupled else ""))
         if holes:
             _say_once(run, steps, f"coupled estimates leave out their own valid samples where the other wheelset's "
                                   f"channels are masked, each hole widened by the inverse filter's edges (the "
                                   f"coupling needs both; holes in the profile, no uncoupled patch): "
                                   f"{', '.join(holes)}")
-        alone = [f"{w}/{kind}" for (w, kind) in tis if f"{w}/{kind}" not in coupled]
-        if alone:
-            _say_once(run, steps, f"{', '.join(alone)} inverted without the rail coupling (no stretch long enough "
-                                  f"valid on both wheelsets): the other wheelset's contact forces, which deflect the "
-                                  f"rail under it, are missing from its estimate (dB in 30-100 mm on a curve)")
+        for why in dict.fromkeys(alone_why.values()):
+            alone = [f"{w}/{kind}" for (w, kind) in tis if alone_why.get((w, kind)) == why]
+            if alone:
+                _say_once(run, steps, f"{', '.join(alone)} inverted without the rail coupling ({why}): the other "
+                                      f"wheelset's contact forces, which deflect the rail under it, are missing from "
+                                      f"its estimate ({UNCOUPLED_EFFECT})")
         timings["coupling"] = time.perf_counter() - t0
         if not tis:
             raise _nothing_estimated(run, skipped)
+    elif cfg.bogie_coupling:
+        alone = ", ".join(f"{w}/{kind}" for (w, kind) in tis)
+        _say_once(run, steps, f"{alone} inverted without the rail coupling (one instrumented wheelset): the bogie's "
+                              f"other wheelset rolls on the same rails {wb:.3f} m away and its contact forces, which "
+                              f"deflect the rail under this one, are not measured ({UNCOUPLED_EFFECT}); instrument "
+                              f"both wheelsets for the coupled estimate")
     # ---- space, comb, indexes per wheelset
     t0 = time.perf_counter()
     profiles: dict[tuple[int, str], ProfileEstimate] = {}
@@ -691,7 +884,10 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
     dx_used: dict[int, float] = {}
     bands = cfg.bands_mm
     windows = [cfg.window_m(b) for b in bands]
-    c_nom = 2 * math.pi * cfg.wheel_radius_m * float(np.median(track.scale))
+    # (a FieldModel built without prepare() may carry no radius yet: the model's, as prepare() would resolve it)
+    r_nom = cfg.wheel_radius_m if cfg.wheel_radius_m is not None else with_wheel_radius(
+        cfg, check_wheelset_geometry(fm.model)).wheel_radius_m
+    c_nom = 2 * math.pi * r_nom * float(np.median(track.scale))
     spacing = sleeper_spacing(cfg, fm)
     sleeper_steps: list[str] = []
     for w in sorted({w for w, _ in tis}):
@@ -703,9 +899,18 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
         prof_nom = tis[(w, primary)].sample(t_of(x_nom))
         fit = circumference(prof_nom, dx_c, c_nom, search=cfg.radius_search)
         if not fit.found:
-            log.info("%s: wheelset %d: no clear wheel periodicity (significance %.1f); circumference from the "
-                     "odometer %.4f m", run.source, w, fit.significance, c_nom)
-            fit = CircumferenceFit(c_nom, c_nom, fit.significance, fit.revolutions)
+            lo, hi = (-cfg.radius_search, cfg.radius_search) if np.ndim(cfg.radius_search) == 0 else cfg.radius_search
+            msg = (f"wheelset {w}: circumference not fitted, {fit.verdict}; searched {c_nom * (1 + lo):.4f}-"
+                   f"{c_nom * (1 + hi):.4f} m around the nominal wheel radius {r_nom:.4f} m; the odometer's "
+                   f"{c_nom:.4f} m is used for the wheel comb (a wrong one leaves the wheel's roughness in the rail "
+                   f"estimate: give the measured radius, --wheel-radius)")
+            # a weak wheel (no periodicity) is common and harmless; a refused strong peak means a wrong radius
+            if fit.significance >= MIN_SIGNIFICANCE:
+                _say_once(run, steps, msg)
+            else:
+                log.info("%s: %s", run.source, msg)
+                steps.append(msg)
+            fit = replace(fit, circumference_m=c_nom, nominal_m=c_nom)
         circ[w] = fit
         n_rev = int(math.ceil(fit.circumference_m / dx_target))
         dx = fit.circumference_m / n_rev
@@ -744,7 +949,7 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
     timings["space_comb_indexes"] = time.perf_counter() - t0
     steps.append("time -> chainage at " + ", ".join(f"wheelset {w}: dx {1e3 * d:.2f} mm, circumference "
                                                      f"{circ[w].circumference_m:.4f} m" for w, d in dx_used.items())
-                 + f"; shortest resolved wavelength {1e3 * lam_min:.1f} mm")
+                 + f"; nominal wheel radius {r_nom:.4f} m; shortest resolved wavelength {1e3 * lam_min:.1f} mm")
     steps += sleeper_steps or [_sleeper_off(cfg)]
     # ---- tables: indexes, spectra, corrugation
     t0 = time.perf_counter()

@@ -84,6 +84,7 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
     cfg = EstimatorConfig(models=models, speed_gate_m_s=args.speed_gate, wheelbase_m=args.wheelbase,
                           regularisation=args.regularisation, bogie_coupling=not args.single_wheelset,
                           contact=ContactParameters(wheel_load_N=args.wheel_load * 1e3),
+                          wheel_radius_m=args.wheel_radius,
                           sleeper_comb=not args.keep_sleeper_passing, sleeper_spacing_m=args.sleeper_spacing)
     trackform = load_trackform(args.trackform) if args.trackform else None
     t0 = time.perf_counter()
@@ -175,6 +176,10 @@ def add_field_commands(sub) -> None:
                           "(default 0.02)")
     est.add_argument("--wheel-load", default=55.0, type=bounded_float("--wheel-load", 1.0, 500.0, unit="kN"),
                      help="static wheel load [kN] for the Hertz contact stiffness and patch (default 55)")
+    est.add_argument("--wheel-radius", default=None, type=bounded_float("--wheel-radius", 0.2, 0.7, unit="m"),
+                     help="nominal (e.g. measured, worn) wheel rolling radius [m] for the circumference search, the "
+                          "contact angles and the Hertz contact (default: the model's, its contact points' distance "
+                          "from the axle)")
     est.add_argument("--single-wheelset", action="store_true",
                      help="the thesis's single-wheelset transfer functions: leave out the rail's coupling of the "
                           "bogie's two wheelsets (default: included)")

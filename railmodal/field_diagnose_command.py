@@ -53,7 +53,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     cfg = DiagnosisConfig(max_effects=args.max_effects, effects=effects, workers=args.workers)
     from estimator import EstimatorConfig
 
-    ecfg = EstimatorConfig(wheelbase_m=args.wheelbase)
+    ecfg = EstimatorConfig(wheelbase_m=args.wheelbase, wheel_radius_m=args.wheel_radius)
     trackform = load_trackform(args.trackform) if args.trackform else None
     say = (lambda m: None) if args.quiet else (lambda m: print(f"  … {m}", file=sys.stderr, flush=True))
     say(f"estimating {len(args.runs)} run(s), building the evidence, fitting the catalogue")
@@ -103,6 +103,10 @@ def add_field_diagnose_command(sub) -> None:
     p.add_argument("--direction", choices=("forward", "backward"), default=None)
     p.add_argument("--wheelbase", default=None, type=bounded_float("--wheelbase", 0.5, 10.0, unit="m"),
                    help="bogie wheelbase [m] (default: measured from the two wheelsets' estimates)")
+    p.add_argument("--wheel-radius", default=None, type=bounded_float("--wheel-radius", 0.2, 0.7, unit="m"),
+                   help="nominal (e.g. measured, worn) wheel rolling radius [m] for the circumference search, the "
+                        "contact angles and the Hertz contact (default: the model's, its contact points' distance "
+                        "from the axle)")
     p.add_argument("--effects", default=None,
                    help="catalogue effects to try, comma separated (default: all)")
     p.add_argument("--max-effects", default=3, type=bounded_int("--max-effects", 0, 6))

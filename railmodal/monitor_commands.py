@@ -76,7 +76,7 @@ def _spec(args, model) -> object:
     from estimator import EstimatorConfig
     from estimator.monitoring import IngestSpec, MonitoringConfig
 
-    est = EstimatorConfig(wheelbase_m=args.wheelbase, speed_gate_m_s=args.speed_gate)
+    est = EstimatorConfig(wheelbase_m=args.wheelbase, speed_gate_m_s=args.speed_gate, wheel_radius_m=args.wheel_radius)
     mon = MonitoringConfig(model=args.model_kind, window_m=args.window, n_perturbed=args.perturbed,
                            uncertainty_runs=args.uncertainty_runs)
     return IngestSpec(str(model), str(args.sensors), line=str(args.line) if args.line else None, estimator=est,
@@ -246,6 +246,10 @@ def _common_processing(p) -> None:
     p.add_argument("--direction", choices=_DIRECTIONS, default=None, help="override every run's direction")
     p.add_argument("--wheelbase", default=None, type=bounded_float("--wheelbase", 0.5, 10.0, unit="m"),
                    help="bogie wheelbase [m] (default: measured from each run)")
+    p.add_argument("--wheel-radius", default=None, type=bounded_float("--wheel-radius", 0.2, 0.7, unit="m"),
+                   help="nominal (e.g. measured, worn) wheel rolling radius [m] for the circumference search, the "
+                        "contact angles and the Hertz contact (default: the model's, its contact points' distance "
+                        "from the axle)")
     p.add_argument("--speed-gate", default=3.0, type=bounded_float("--speed-gate", 0.0, 100.0, lo_open=True,
                                                                     unit="m/s"), help="default 3 m/s")
     p.add_argument("--model-kind", default="vertical_lateral", choices=("half", "vertical", "vertical_lateral"),

@@ -374,7 +374,10 @@ class ContactParameters:
         The thesis does not state the load; this is an assumption.
     wheel_rolling_radius = 0.41
         Table 2.1 lists "wheel nominal diameter (new), R_w = 0.41 m"; the
-        symbol and value are a radius (820 mm new wheel), used as such.
+        symbol and value are a radius (820 mm new wheel), used as such. The
+        field estimator replaces it by its nominal wheel radius (the
+        wheelset model's rolling radius or a measured one,
+        :func:`estimator.workflow.with_wheel_radius`).
     wheel_transverse_radius = inf
         ORE S1002 tread (Table 2.1) near the nominal rolling circle is almost
         straight; a worn, hollow tread would be a negative (concave) radius.

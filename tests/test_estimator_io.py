@@ -334,6 +334,8 @@ def test_a_name_in_two_channel_groups_is_kept_when_equal_and_must_be_chosen_when
 @pytest.mark.parametrize("file_unit, table_unit, factor", [
     ("m s-2", "m/s^2", 1.0), ("m·s⁻²", "m/s²", 1.0), ("m/s**2", "m/s^2", 1.0), ("G", "g", G), ("gn", "g", G),
     ("mm/s^2", "mm/s²", 1e-3),
+    # units the lab's hammer reader knows (ema.channels.UNIT_TO_SI): the field reads them through the same table
+    ("mg", "mg", 1e-3 * G), ("in/s²", "in/s^2", 0.0254), ("FT/S**2", "ft/s^2", 0.3048),
 ])
 def test_unit_spellings_of_data_loggers_are_one_unit(tmp_path, file_unit, table_unit, factor):
     """A unit a logger spells its own way is the table's unit (and its SI factor), not a contradiction."""
@@ -348,6 +350,24 @@ def test_unit_spellings_of_data_loggers_are_one_unit(tmp_path, file_unit, table_
     write_mdf4(p, ch, HEADER)
     run = read_run(p, table)
     np.testing.assert_allclose(run.acceleration[0], ch["ACC_W1L_Z"][1] * factor, rtol=1e-12)
+
+
+def test_every_acceleration_unit_the_lab_knows_the_field_sensor_table_knows_with_its_factor():
+    """One unit table (ema.channels.UNIT_TO_SI): each label with its SI factor as the sensitivity is a valid row,
+    and a g channel in mg (sensitivity 1000 x too large) is still refused by the sensitivity check."""
+    from ema.channels import UNIT_TO_SI as LAB
+    from estimator.io.sensors import UNIT_TO_SI, check_sensors, normalise_unit
+
+    s = sensor_table()
+    acc = s["quantity"] == "acceleration"
+    for label, factor in LAB["acceleration"].items():
+        s.loc[acc, "unit"], s.loc[acc, "sensitivity"] = label, factor
+        out = check_sensors(s)
+        assert UNIT_TO_SI[normalise_unit(label)] == factor, label
+        np.testing.assert_allclose(out.loc[acc, "sensitivity"], factor, rtol=0)
+    s.loc[acc, "unit"], s.loc[acc, "sensitivity"] = "mg", G
+    with pytest.raises(SensorTableError, match="does not convert mg to SI"):
+        check_sensors(s)
 
 
 @pytest.mark.parametrize("recorded", ["speed", "position"])

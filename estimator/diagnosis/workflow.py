@@ -183,6 +183,7 @@ def run_field_diagnosis(runs: Sequence, references: Sequence, site: tuple[float,
     t_start = time.perf_counter()
     timings: dict = {}
     fm = prepare(model, sensors, line=line, trackform=trackform, config=ecfg)
+    ecfg = fm.config  # the nominal wheel radius resolved from the model, carried into the Hertz contact
     recs = {}
     for p in references:
         rec = read_trolley_record(p)

@@ -3,7 +3,10 @@
 Columns: ``name, quantity, unit, wheelset, side, direction, x, y, z, sensitivity``.
 
 * ``quantity`` ∈ {acceleration, speed, position, balise};
-* ``unit`` the recorded unit (``g``, ``m/s^2``, ``m/s``, ``km/h``, ``m``...);
+* ``unit`` the recorded unit: accelerations in any unit of the lab's table
+  (:data:`ema.channels.UNIT_TO_SI`: ``m/s^2``, ``mm/s^2``, ``g``, ``mg``,
+  ``in/s^2``, ``ft/s^2`` and their spellings), speeds in ``m/s``, ``km/h``,
+  positions in ``m``, ``mm``, ``km``;
 * ``wheelset`` 1 or 2 (vehicle numbering: 1 at the car's front end) for
   accelerations, blank otherwise; ``side`` ``L``/``R`` of the vehicle;
   ``direction`` ``x``/``y``/``z`` (vehicle frame);
@@ -24,6 +27,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ema.channels import UNIT_TO_SI as _LAB_UNIT_TO_SI
 from estimator.errors import SensorTableError
 
 __all__ = ["read_sensors", "check_sensors", "SENSOR_COLUMNS", "QUANTITIES", "normalise_unit", "UNIT_TO_SI"]
@@ -34,16 +38,22 @@ QUANTITIES = ("acceleration", "speed", "position", "balise")
 MAX_ROWS = 1000
 MAX_BYTES = 1_000_000
 
-#: spellings data loggers write (compared without blanks, "·" or "*", "**" as "^", lower case) -> canonical unit
-_UNIT_ALIASES = {"m/s^2": "m/s^2", "m/s2": "m/s^2", "m/s²": "m/s^2", "ms-2": "m/s^2", "ms^-2": "m/s^2",
-                 "m/s/s": "m/s^2", "mm/s^2": "mm/s^2", "mm/s2": "mm/s^2", "mm/s²": "mm/s^2",
-                 "g": "g", "g0": "g", "gn": "g", "g_n": "g",
+#: accelerations: the lab's unit table (:data:`ema.channels.UNIT_TO_SI`), not a copy of it; the canonical
+#: spelling of a factor is the lab table's first label with it (``m/s^2``, ``mm/s^2``, ``in/s^2``, ``ft/s^2``,
+#: ``g``, ``mg``)
+_ACC_CANONICAL: dict[float, str] = {}
+for _label, _factor in _LAB_UNIT_TO_SI["acceleration"].items():
+    _ACC_CANONICAL.setdefault(_factor, _label)
+del _label, _factor
+#: spellings data loggers write (compared without blanks, "·" or "*", "**" as "^", lower case) -> canonical unit:
+#: the accelerations' from the lab's table, speeds and positions (which the lab does not record) here
+_UNIT_ALIASES = {**{label: _ACC_CANONICAL[f] for label, f in _LAB_UNIT_TO_SI["acceleration"].items()},
                  "m/s": "m/s", "ms-1": "m/s", "ms^-1": "m/s", "km/h": "km/h", "kph": "km/h", "kmh": "km/h",
                  "km/hr": "km/h", "kmh-1": "km/h", "kmh^-1": "km/h", "m": "m", "mm": "mm", "km": "km"}
 #: SI factor of each recognised unit (the sensitivity of a perfect sensor recorded in it)
-UNIT_TO_SI = {"m/s^2": 1.0, "mm/s^2": 1e-3, "g": 9.80665, "m/s": 1.0, "km/h": 1 / 3.6, "m": 1.0, "mm": 1e-3,
-              "km": 1e3}
-_QUANTITY_UNITS = {"acceleration": ("m/s^2", "mm/s^2", "g"), "speed": ("m/s", "km/h"),
+UNIT_TO_SI = {**{label: f for f, label in _ACC_CANONICAL.items()},
+              "m/s": 1.0, "km/h": 1 / 3.6, "m": 1.0, "mm": 1e-3, "km": 1e3}
+_QUANTITY_UNITS = {"acceleration": tuple(_ACC_CANONICAL.values()), "speed": ("m/s", "km/h"),
                    "position": ("m", "mm", "km"), "balise": ("m", "mm", "km")}
 
 
