@@ -418,7 +418,11 @@ def _setup_manifest(plan: CampaignPlan, name: str, ranges: np.ndarray, hit_recor
     }
 
 
-def simulate(scenario: str, out_dir: str | Path, *, progress: Callable[[str], None] | None = None, **config) -> dict[str, Path]:
-    """Plan and write a campaign of ``scenario`` into ``out_dir`` (see :class:`CampaignConfig` for options)."""
-    plan = plan_campaign(CampaignConfig(scenario=scenario, **config))
+def simulate(scenario: str, out_dir: str | Path, *, progress: Callable[[str], None] | None = None,
+             design: str = "default", **config) -> dict[str, Path]:
+    """Plan and write a campaign of ``scenario`` on the wheelset ``design`` (:data:`lab_data.designs.DESIGNS`) into
+    ``out_dir`` (see :class:`CampaignConfig` for options)."""
+    from .designs import get_design
+
+    plan = plan_campaign(CampaignConfig(scenario=scenario, **config), get_design(design))
     return write_campaign(plan, out_dir, progress=progress)

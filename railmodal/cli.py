@@ -50,6 +50,12 @@ def _scenario_names() -> list[str]:
     return sorted(SCENARIOS)
 
 
+def _design_names() -> list[str]:
+    from lab_data.designs import DESIGNS
+
+    return sorted(DESIGNS)
+
+
 def _setup_logging(verbosity: int) -> None:
     level = logging.WARNING if verbosity < 0 else logging.INFO if verbosity == 0 else logging.DEBUG
     logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(message)s", datefmt="%H:%M:%S",
@@ -87,13 +93,15 @@ def _describe_campaign(files: dict[str, Path], brief: bool = False) -> None:
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
     from lab_data.campaign import simulate
+    from lab_data.designs import DESIGN_FE_MAX_HZ
 
     from railmodal.output import staged_output
 
     t0 = time.perf_counter()
     with staged_output(args.out) as tmp:
-        written = simulate(args.scenario, tmp, progress=None if args.quiet else _progress, fe_max_hz=args.fe_max_hz,
-                           fe_export_hz=args.fe_export_hz, fe_style=args.fe_style,
+        fe_max_hz = DESIGN_FE_MAX_HZ[args.design] if args.fe_max_hz is None else args.fe_max_hz
+        written = simulate(args.scenario, tmp, progress=None if args.quiet else _progress, design=args.design,
+                           fe_max_hz=fe_max_hz, fe_export_hz=args.fe_export_hz, fe_style=args.fe_style,
                            seed=args.seed, n_hits=args.hits)
     files = {key: Path(args.out) / path.relative_to(tmp) for key, path in written.items()}
     _describe_campaign(files)
@@ -330,8 +338,13 @@ def build_parser() -> argparse.ArgumentParser:
     sim = lab_sub.add_parser("simulate", help="write the files of one impact-test campaign")
     sim.add_argument("--scenario", required=True, choices=_scenario_names())
     sim.add_argument("--out", required=True, type=output_folder("--out"), help="output folder")
-    sim.add_argument("--fe-max-hz", type=bounded_float("--fe-max-hz", 50.0, 5000.0, unit="Hz"), default=500.0,
-                     help="highest truth mode synthesised and, by default, exported (default 500)")
+    sim.add_argument("--design", choices=_design_names(), default="default",
+                     help="the wheelset: default (thesis Table 2.1's metro trailer wheelset), metro (a light one, "
+                          "180 kg wheels, r 0.34 m) or freight (a heavy one, 340 kg wheels, r 0.46 m); to check "
+                          "that a workflow is not tuned to one wheelset")
+    sim.add_argument("--fe-max-hz", type=bounded_float("--fe-max-hz", 50.0, 5000.0, unit="Hz"), default=None,
+                     help="highest truth mode synthesised and, by default, exported (default: in the design's "
+                          "spectral gap above 500 Hz: 500, metro 510, freight 520)")
     sim.add_argument("--fe-export-hz", type=bounded_float("--fe-export-hz", 50.0, 10000.0, unit="Hz"), default=None,
                      help="highest design FE mode exported if above --fe-max-hz (e.g. 2000: the basis structural "
                           "modifications such as bearings need)")

@@ -106,7 +106,8 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
                         max_effects=args.max_effects, max_order=args.max_order, mac_min=args.mac_min,
                         description=args.description, n_averages=args.averages, frf_window_decay=args.window_decay,
                         workers=args.workers, geometry=args.geometry, total_mass=args.total_mass,
-                        fe_units=args.fe_units, progress=_progress_printer(args.quiet))
+                        fe_units=args.fe_units, mode_margin=args.mode_margin,
+                        progress=_progress_printer(args.quiet))
     for line in summarise(result):
         print(line)
     print(f"done in {time.perf_counter() - t0:.1f} s")
@@ -151,6 +152,9 @@ def add_diagnose_parser(lab_subparsers) -> argparse.ArgumentParser:
                    help="identification, comparison and diagnosis band [Hz]: its octaves are the cells of the error "
                         "E, its noise floor and every fit (default 10 500; a wheelset hung from soft slings shows "
                         "its rig modes only from a few Hz, e.g. 4 500, where the records resolve it)")
+    d.add_argument("--mode-margin", type=bounded_float("--mode-margin", 1.0, 4.0), default=1.0,
+                   help="the model keeps the modes up to this multiple of the band's top, 1-4 (default 1; a real "
+                        "wheelset's modes just above the band are in its measurement: 1.5 keeps them)")
     d.add_argument("--max-effects", type=bounded_int("--max-effects", 0, 10), default=3,
                    help="most effects accepted one after the other, 0-10 (default 3)")
     d.add_argument("--max-order", type=bounded_int("--max-order", 1, MAX_ORDER), default=100,

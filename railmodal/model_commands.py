@@ -105,8 +105,8 @@ def _cmd_build(args: argparse.Namespace) -> int:
     from receptance.dofs import check_points, read_points
     from receptance.frame import to_railway_frame
     from receptance.hybrid import check_fe_for_model, hybrid_model
+    from receptance.modal_model import ModelError
     from receptance.model_io import save_model
-    from receptance.modification import PrimarySuspension
     from receptance.plot_model import plot_receptances
 
     from railmodal.output import staged_output
@@ -120,6 +120,7 @@ def _cmd_build(args: argparse.Namespace) -> int:
     if len(hammers) > MAX_VALIDATION_FILES:
         args._build_parser.error(f"at most {MAX_VALIDATION_FILES} --hammer files, got {len(hammers)}")
     # ---- validate every input before any work
+    suspension, suspension_source = _primary_suspension(args.description)
     step(f"reading {args.fem}")
     fe, where = fem_import.read_with_geometry(args.fem, args.geometry, units=args.fe_units)
     step(where)
@@ -142,14 +143,23 @@ def _cmd_build(args: argparse.Namespace) -> int:
     for table in rail_tables:
         shapes_at_channels(free.fe, table)  # every sensor near its fe_node (named in the error)
     # ---- work
-    model = free if args.free_free else free.with_modification(PrimarySuspension())
-    system_modes = model.modes()
-    bad = ~np.isfinite(system_modes["f_hz"].to_numpy(float)) | (system_modes["zeta"].to_numpy(float) >= 1)
+    # the wheelset's own (FE/test) modes are lightly damped structural modes: one overdamped or not finite means
+    # bad shapes or units, not physics; the suspended rigid-body modes may well be overdamped (a light wheelset on
+    # stiff dampers), which is reported, not refused
+    elastic = free.modes()
+    bad = ~np.isfinite(elastic["f_hz"].to_numpy(float)) | (elastic["zeta"].to_numpy(float) >= 1)
     if bad.any():
-        r = system_modes[bad].iloc[0]
-        raise ValueError(f"the model built from {args.fem} has a mode at {r['f_hz']:.4g} Hz with damping ratio "
-                         f"{r['zeta']:.3g}: not a structure; check the FE export's normalisation and units")
-    state = "free-free" if args.free_free else "in service (primary suspension, thesis Table 2.1)"
+        r = elastic[bad].iloc[0]
+        raise ModelError(f"the wheelset model built from {args.fem} has an elastic mode at {r['f_hz']:.4g} Hz with "
+                         f"damping ratio {r['zeta']:.3g}: not a structure; check the FE export's normalisation and "
+                         f"units")
+    model = free if args.free_free else free.with_modification(suspension)
+    system_modes = model.modes()
+    if not np.isfinite(system_modes[["f_hz", "zeta"]].to_numpy(float)).all():
+        raise ModelError(f"the in-service model (primary suspension from {suspension_source}) has a mode that is "
+                         f"not finite; check the suspension's values")
+    overdamped = system_modes[system_modes["zeta"].to_numpy(float) >= 1]
+    state = "free-free" if args.free_free else f"in service (primary suspension, {suspension_source})"
     f = np.linspace(args.band[0], args.band[1], 2000)
     step("receptances between contact points and axleboxes")
     H = model.receptance(["contact_L:z", "axlebox_L:z", "contact_R:z", "axlebox_R:z", "contact_L:y",
@@ -176,10 +186,33 @@ def _cmd_build(args: argparse.Namespace) -> int:
     print(free.table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     print(f"{state}: lowest modes " + ", ".join(f"{r.f_hz:.2f} Hz (zeta {100 * r.zeta:.1f} %)"
                                                  for r in system_modes.head(6).itertuples()))
+    if len(overdamped):
+        print("overdamped suspension motion (real poles, no oscillation; |λ|/2π): " + ", ".join(
+            f"{r.f_hz:.2f} Hz" for r in overdamped.itertuples()) + " — the primary suspension's dampers exceed "
+            "critical damping on a rigid-body motion of this wheelset (physics, not an error)")
     for line in lines:
         print(line)
     print("written: " + ", ".join(str(p) for p in written))
     return 0
+
+
+def _primary_suspension(description):
+    """The in-service primary suspension: the description's ``[primary_suspension]`` or thesis Table 2.1.
+
+    Returns the modification and where its values come from (for the output).
+    """
+    from receptance.modification import PrimarySuspension
+    from receptance.wheelset_description import read_description
+
+    if description is None:
+        return PrimarySuspension(), "thesis Table 2.1"
+    d = read_description(description)
+    given = {k: v for k, v in (("stiffness", d.suspension_stiffness), ("damping", d.suspension_damping))
+             if v is not None}
+    if not given:
+        return PrimarySuspension(), f"thesis Table 2.1 ({description} has no [primary_suspension])"
+    rest = "" if len(given) == 2 else f", {'damping' if 'stiffness' in given else 'stiffness'} of Table 2.1"
+    return PrimarySuspension(**given), f"{description}{rest}"
 
 
 def _transfer_plots(model, f, args, out: Path, step) -> list[Path]:
@@ -284,6 +317,10 @@ def add_model_commands(sub) -> None:
     b.add_argument("--diagnosed", default=None, type=existing_file("--diagnosed", "diagnosed model"),
                    help="hybrid_model.npz of 'lab diagnose' (same FE export): the model keeps the wheelset "
                         "properties the diagnosis found (bearings, press fits), not its test artefacts (rig, sensors)")
+    b.add_argument("--description", type=existing_file("--description", "wheelset description (TOML)"),
+                   default=None, help="wheelset description (TOML); its [primary_suspension] (stiffness_N_per_m, "
+                                      "damping_N_s_per_m per axlebox along x, y, z) is the in-service suspension "
+                                      "(default: thesis Table 2.1)")
     b.add_argument("--free-free", action="store_true", help="do not add the primary suspension")
     b.add_argument("--band", nargs=2, type=bounded_float("--band", 0.0, 1e5, lo_open=True, unit="Hz"),
                    action=band_action("--band", 0.0, 1e5), default=[1.0, 500.0], metavar=("LOW", "HIGH"),

@@ -28,7 +28,7 @@ import numpy as np
 from ema.frf import QUANTITIES, FrequencyResponse
 from ema.lsce import pole_frequency_hz
 
-__all__ = ["PoleResidues", "pole_pairs"]
+__all__ = ["PoleResidues", "pole_pairs", "viscous_equivalent"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -207,10 +207,88 @@ def pole_pairs(poles: np.ndarray, rtol: float = 1e-9) -> tuple[np.ndarray, np.nd
     lower = np.empty_like(upper)
     free = set(np.flatnonzero(lam.imag < 0).tolist())
     for n, k in enumerate(upper):
-        cands = [j for j in free if abs(lam[j] - lam[k].conj()) <= rtol * max(abs(lam[k]), 1.0)]
+        cands = [j for j in sorted(free) if abs(lam[j] - lam[k].conj()) <= rtol * max(abs(lam[k]), 1.0)]
         if not cands:
             raise ValueError(f"pole {lam[k]:.6g} has no complex-conjugate partner")
-        j = min(cands, key=lambda j: abs(lam[j] - lam[k].conj()))
+        # ties (a repeated pole) go to the first free partner: a model listing its partners in the order of
+        # their poles is paired as listed
+        j = min(cands, key=lambda j: (abs(lam[j] - lam[k].conj()), j))
         lower[n] = j
         free.remove(j)
     return upper, lower
+
+
+def viscous_equivalent(model: PoleResidues) -> PoleResidues:
+    """The causal, conjugate-symmetric model with each mode's own pole: hysteretic loss as viscous at the mode.
+
+    A structural (hysteretic) loss factor ``η`` makes a spring's stiffness
+    complex at every frequency, ``k (1 + iη)`` (thesis §2.4 uses it for the
+    track; :class:`~receptance.effect_modifications.BearingBodies` for the
+    bearings).  At ``Ω > 0`` that is the physics, but as a pole set it is not
+    conjugate-symmetric: near ``s = +iω`` the loss acts as a damper
+    ``c = ηk/ω``, near ``s = −iω`` as a negative one, so each mode's lower pole
+    lies off the conjugate of its upper pole (in the right half-plane for a
+    lightly viscous mode) and its impulse response is not real nor causal
+    (Crandall 1970, "The role of damping in vibration theory", J. Sound Vib.
+    11, 3–18).  Uses that need real modes — time-domain responses, the
+    perturbation of modal frequency and damping of the thesis §4.2 — take the
+    equivalent viscous damping at the mode instead (equal energy dissipated
+    per cycle at the resonance, ``c_eq = ηk/ω_r``, modal ``ζ ≈ η/2``; Ewins,
+    *Modal Testing*, 2nd ed. 2000, §2.2): each mode keeps its upper pole
+    ``λ`` (``Im λ > 0``, the one that resonates at ``Ω = ω_r``, so ``ω_r`` and
+    ``ζ_r`` are unchanged) and residue ``R``, and its partner becomes
+    ``λ̄, R̄``.  The receptance at ``Ω > 0`` changes only by the partner's
+    off-resonant term (relative change of order ``η`` in a term that is
+    ``ζ/2`` of the resonant one at resonance); frequency-domain uses
+    (:mod:`receptance.transfer`) keep the exact model.
+
+    Pairing: every lower pole is assigned to the upper pole whose conjugate is
+    nearest (one assignment over all, so a cluster of close modes is paired as
+    a whole); a pole nearer its own conjugate than to any partner is a real
+    (overdamped) pole the loss moved off the axis, and keeps its real part and
+    the real part of its residue.  A conjugate-symmetric model is returned
+    unchanged.
+
+    Parameters
+    ----------
+    model : PoleResidues
+
+    Returns
+    -------
+    PoleResidues
+        Conjugate-symmetric (``pole_pairs`` pairs every oscillating pole).
+    """
+    lam = model.poles
+    R = model.residues
+    try:
+        upper, lower = pole_pairs(lam)
+        scale = max(np.abs(R).max(initial=0.0), np.finfo(float).tiny)
+        if not upper.size or np.abs(R[:, :, lower] - R[:, :, upper].conj()).max() <= 1e-9 * scale:
+            return model
+    except ValueError:
+        pass
+    from scipy.optimize import linear_sum_assignment
+
+    up = np.flatnonzero(lam.imag > 0)
+    lo = np.flatnonzero(lam.imag < 0)
+    nu, nl = up.size, lo.size
+    # assignment with a "stay real" option for each pole: cost |λ_l − conj λ_u| for a pair, |λ − conj λ| = 2|Im λ|
+    # for a pole alone (dummy rows/columns); impossible entries get a cost larger than any sum of real ones
+    big = 4 * (np.abs(lam).sum() + 1.0)
+    cost = np.full((nu + nl, nl + nu), big)
+    cost[:nu, :nl] = np.abs(lam[lo][None, :] - lam[up][:, None].conj())
+    cost[np.arange(nu), nl + np.arange(nu)] = 2 * np.abs(lam[up].imag)
+    cost[nu + np.arange(nl), np.arange(nl)] = 2 * np.abs(lam[lo].imag)
+    cost[nu:, nl:] = 0.0
+    rows, cols = linear_sum_assignment(cost)
+    modes = np.sort([int(up[r]) for r, c in zip(rows, cols) if r < nu and c < nl]).astype(int)
+    alone = np.sort([int(up[r]) for r, c in zip(rows, cols) if r < nu and c >= nl]
+                    + [int(lo[c]) for r, c in zip(rows, cols) if r >= nu and c < nl]
+                    + np.flatnonzero(lam.imag == 0).tolist()).astype(int)
+    # the upper poles, then their partners in the same order (so that pole_pairs pairs a repeated pole with its
+    # own partner), then the real ones
+    poles = np.concatenate([lam[modes], lam[modes].conj(), lam[alone].real])
+    res = np.concatenate([R[:, :, modes], R[:, :, modes].conj(), R[:, :, alone].real], axis=2)
+    return replace(model, poles=poles, residues=res, mass_line=model.mass_line.real.astype(complex),
+                   history=model.history + ("hysteretic loss as equivalent viscous damping at each mode "
+                                            "(conjugate-symmetric poles)",))

@@ -22,7 +22,11 @@ Perturbation (:func:`perturbation_factors`, :func:`perturbed_models`)
     conjugate partner moves with its pole, the residues are scaled to keep a
     real mode's mass-normalised shape (``PoleResidues.with_poles(...,
     keep="mass_normalised")``), the rigid-body mass line and real
-    (overdamped) poles are not perturbed.
+    (overdamped) poles are not perturbed.  A model with hysteretic losses
+    (complex stiffness: the bearings' loss factor) has no conjugate pole
+    pairs; it is perturbed as its equivalent with viscous damping at each
+    mode (:func:`~receptance.pole_residue.viscous_equivalent`: every mode
+    keeps its own ``ω`` and ``ζ``, the thesis's modal parameters).
 
 Vectorised evaluation (:func:`robustness_study`)
     A pole pair with residue ``R`` (and ``R̄`` on the partner) contributes to
@@ -74,7 +78,7 @@ from typing import Sequence
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from receptance.pole_residue import PoleResidues, pole_pairs
+from receptance.pole_residue import PoleResidues, pole_pairs, viscous_equivalent
 from receptance.transfer import (DEFAULT_CHANNELS, MODEL_KINDS, SIDES, TransferModelError, _as_normals,
                                  _check_freqs, _compliances, _layout, _rail, _require, contact_normals,
                                  dof_label)
@@ -120,7 +124,11 @@ def perturbation_factors(n_models: int, n_pairs: int, amplitude: float = 0.10, s
 
 def _pairs(model: PoleResidues):
     lam = model.poles
-    upper, lower = pole_pairs(lam)
+    try:
+        upper, lower = pole_pairs(lam)
+    except ValueError as exc:  # callers pass viscous_equivalent(model); anything left is not a structure's pole set
+        raise TransferModelError(f"the model's poles are not in conjugate pairs ({exc}); the perturbation study "
+                                 f"needs a real (conjugate-symmetric) model") from None
     R = model.residues
     scale = max(np.abs(R).max(initial=0.0), np.finfo(float).tiny)
     if upper.size and np.abs(R[:, :, lower] - R[:, :, upper].conj()).max() > 1e-9 * scale:
@@ -148,6 +156,7 @@ def perturbed_models(model: PoleResidues, n_models: int, amplitude: float = 0.10
     Same draws as :func:`robustness_study` with the same arguments; see the
     module docstring for the perturbation.
     """
+    model = viscous_equivalent(model)
     upper, lower, _ = _pairs(model)
     fw, fz = perturbation_factors(n_models, upper.size, amplitude, seed)
     wp, zp = _perturbed_poles(model.poles[upper], fw, fz)
@@ -541,6 +550,8 @@ def robustness_study(model, freqs_hz, *, n_models: int = 50, amplitude: float = 
         else:
             raise TypeError(f"the robustness study needs a PoleResidues (or ModalModel) wheelset model, got "
                             f"{type(model).__name__}")
+    # hysteretic losses (complex stiffness) as viscous damping at each mode: the study perturbs modes' ω and ζ
+    model = viscous_equivalent(model)
     f = _check_freqs(freqs_hz, "freqs_hz")
     alpha = float(regularisation)
     if not math.isfinite(alpha) or alpha < 0:

@@ -12,7 +12,10 @@ rest, with the defaults of thesis Table 2.1 (a metro trailer wheelset).
 
 Every value is optional; what is not given is derived from the FE and the
 points table (``points.csv``) or taken from the defaults, and the diagnosis
-says which (:attr:`WheelsetDescription.given`).
+says which (:attr:`WheelsetDescription.given`).  Table 2.1's masses are one
+wheelset's: for another, the masses not given are Table 2.1's proportions
+scaled to the FE's own rigid-body mass (:meth:`WheelsetDescription.fitted_to_fe`),
+and the rim and web default to Table 2.1's shares of the wheel's mass.
 
 File format (TOML, SI units; every key optional)::
 
@@ -30,8 +33,8 @@ File format (TOML, SI units; every key optional)::
 
     [wheel]
     mass_kg = 251.0               # Table 2.1, per wheel
-    rim_mass_kg = 150.0           # rim (tyre) ring
-    web_mass_kg = 80.0            # web (plate between hub and rim)
+    rim_mass_kg = 150.0           # rim (tyre) ring; default 150/251 of mass_kg (Table 2.1's share)
+    web_mass_kg = 80.0            # web (plate between hub and rim); default 80/251 of mass_kg
     rolling_radius_m = 0.41       # default: contact points' distance from the axle axis
     rim_radius_m = 0.3825         # rim centroid; default 0.933 x rolling radius
     hub_radius_m = 0.135          # web's inner edge; default 0.33 x rolling radius
@@ -42,6 +45,11 @@ File format (TOML, SI units; every key optional)::
     # where the wheelset hung during the test: coordinates [m] or point names of points.csv;
     # without them rig_suspension fits the axial position of a symmetric pair of slings on the axle
     hanging_points = [[0.0, -0.55, 0.0], [0.0, 0.55, 0.0]]
+
+    [primary_suspension]
+    # in service, per axlebox to ground (bogie neglected, thesis §2.3); default thesis Table 2.1
+    stiffness_N_per_m = [8.3e6, 4.2e6, 1.0e6]     # x, y, z (Table 2.1: 2 x 4.15, 2 x 2.1, 2 x 0.5 kN/mm)
+    damping_N_s_per_m = [85e3, 50e3, 11e3]        # x, y, z
 
 :func:`read_description` reads such a file; :class:`WheelsetDescription`
 is the value (``WheelsetDescription()`` is the Table 2.1 default).
@@ -55,10 +63,28 @@ import tomllib
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
-__all__ = ["WheelsetDescription", "DescriptionError", "read_description", "AXLEBOX_IN_FE", "SCHEMA"]
+__all__ = ["WheelsetDescription", "DescriptionError", "read_description", "AXLEBOX_IN_FE", "SCHEMA", "TABLE_2_1_MASSES",
+           "MASS_NOTE_RTOL"]
 
 #: how the FE export holds the axleboxes
 AXLEBOX_IN_FE = ("auto", "own_node", "lumped", "absent")
+
+#: thesis Table 2.1 masses [kg] (a metro trailer wheelset; per part: disc, wheel and axlebox each one of them)
+TABLE_2_1_MASSES = {"axle_mass": 283.0, "disc_mass": 135.0, "wheel_mass": 251.0, "axlebox_mass": 78.0}
+#: Table 2.1's rim and web as shares of its wheel (150 and 80 of 251 kg): the defaults of a wheel of any mass
+RIM_SHARE, WEB_SHARE = 150.0 / 251.0, 80.0 / 251.0
+#: Table 2.1's axlebox inertia about x, y, z [kg m²] (a 78 kg box 0.3 x 0.22 x 0.3 m)
+TABLE_2_1_AXLEBOX_INERTIA = (0.9, 1.2, 0.9)
+#: the description's masses and the FE's rigid-body mass are said to disagree beyond this share
+MASS_NOTE_RTOL = 0.05
+#: an FE whose mass is Table 2.1's to this share is Table 2.1's wheelset: its masses are used as they are (a mass
+#: estimate is no better than that; a design office's FE of the thesis wheelset rounds its parts)
+TABLE_2_1_MATCH = 0.01
+#: description key of each mass (messages name what to state)
+MASS_KEYS = {"axle_mass": "[wheelset] axle_mass_kg", "disc_mass": "[wheelset] disc_mass_kg",
+             "wheel_mass": "[wheel] mass_kg", "axlebox_mass": "[axlebox] mass_kg",
+             "axlebox_inertia": "[axlebox] inertia_kg_m2", "rim_mass": "[wheel] rim_mass_kg",
+             "web_mass": "[wheel] web_mass_kg"}
 
 
 class DescriptionError(ValueError):
@@ -87,7 +113,10 @@ class WheelsetDescription:
         (a node of its own at the axlebox centre) and the FE's total mass.
     axlebox_centres : dict side -> (x, y, z) or None
     wheel_mass, rim_mass, web_mass : float
-        Per wheel [kg]; the hub is the rest of ``wheel_mass``.
+        Per wheel [kg]; the hub is the rest of ``wheel_mass``.  ``rim_mass``
+        and ``web_mass`` left None are Table 2.1's shares of ``wheel_mass``
+        (:data:`RIM_SHARE`, :data:`WEB_SHARE`), so a wheel of any mass has a
+        rim, a web and a hub.
     rolling_radius, rim_radius, hub_radius : float or None
         [m].
     hub_planes : dict side -> y or None
@@ -98,6 +127,10 @@ class WheelsetDescription:
     hanging_points : tuple or None
         Where the wheelset hung in the test: ``(x, y, z)`` tuples or point
         names; None: unknown (``rig_suspension`` fits a symmetric pair).
+    suspension_stiffness, suspension_damping : (float, float, float) or None
+        The in-service primary suspension per axlebox along x, y, z [N/m],
+        [N s/m]; None: thesis Table 2.1 (a Meneghino trailer, right for a
+        wheelset of its mass and bogie only).
     source : str
         File read ("" for defaults).
     given : frozenset of str
@@ -112,18 +145,25 @@ class WheelsetDescription:
     axlebox_in_fe: str = "auto"
     axlebox_centres: dict = field(default_factory=lambda: {"L": None, "R": None})
     wheel_mass: float = 251.0
-    rim_mass: float = 150.0
-    web_mass: float = 80.0
+    rim_mass: float | None = None
+    web_mass: float | None = None
     rolling_radius: float | None = None
     rim_radius: float | None = None
     hub_radius: float | None = None
     hub_planes: dict = field(default_factory=lambda: {"L": None, "R": None})
     hanging_points: tuple | None = None
+    suspension_stiffness: tuple | None = None
+    suspension_damping: tuple | None = None
     source: str = ""
     given: frozenset = frozenset()
 
     def __post_init__(self) -> None:
         where = self.source or "wheelset description"
+        # rim and web not stated: Table 2.1's shares of this wheel (absolute 150 + 80 kg would outweigh a light wheel)
+        if self.rim_mass is None and isinstance(self.wheel_mass, (int, float)):
+            object.__setattr__(self, "rim_mass", RIM_SHARE * self.wheel_mass)
+        if self.web_mass is None and isinstance(self.wheel_mass, (int, float)):
+            object.__setattr__(self, "web_mass", WEB_SHARE * self.wheel_mass)
         for name in ("axle_mass", "disc_mass", "axlebox_mass", "wheel_mass", "rim_mass", "web_mass"):
             _check_number(where, name, getattr(self, name), allow_zero=name in ("disc_mass",))
         for name in ("rolling_radius", "rim_radius", "hub_radius"):
@@ -160,6 +200,15 @@ class WheelsetDescription:
                 raise DescriptionError(f"{where}: rig hanging_points is empty; leave it out to fit the sling "
                                        f"position")
             object.__setattr__(self, "hanging_points", tuple(pts))
+        for name, key in (("suspension_stiffness", "stiffness_N_per_m"), ("suspension_damping", "damping_N_s_per_m")):
+            value = getattr(self, name)
+            if value is not None:  # 0 is allowed: no spring (or damper) along that axis
+                if isinstance(value, (str, bytes)) or not hasattr(value, "__len__") or len(value) != 3:
+                    raise DescriptionError(f"{where}: [primary_suspension] {key} needs 3 values (x, y, z), got "
+                                           f"{value!r}")
+                for v in value:
+                    _check_number(where, f"[primary_suspension] {key}", v, allow_zero=True)
+                object.__setattr__(self, name, tuple(float(v) for v in value))
         object.__setattr__(self, "given", frozenset(self.given))
 
     @property
@@ -173,8 +222,112 @@ class WheelsetDescription:
         return self.wheel_mass - self.rim_mass - self.web_mass
 
     def with_values(self, **changes) -> "WheelsetDescription":
-        """A copy with some values changed (and marked as given)."""
-        return replace(self, **changes, given=self.given | frozenset(changes))
+        """A copy with some values changed (and marked as given); a new wheel mass re-derives the rim and web
+        masses that were not given (Table 2.1's shares)."""
+        if "wheel_mass" in changes:
+            for name in ("rim_mass", "web_mass"):
+                if name not in changes and name not in self.given:
+                    changes[name] = None
+        given = self.given | frozenset(k for k, v in changes.items() if v is not None)
+        return replace(self, **changes, given=given)
+
+    def fitted_to_fe(self, fe_mass: float | None, axleboxes_in_fe: bool
+                     ) -> tuple["WheelsetDescription", tuple[str, ...]]:
+        """The masses the description does not give, fitted to an FE's rigid-body mass.
+
+        Table 2.1 describes one wheelset; taken as it is for another it takes
+        masses off FE nodes that do not carry them.  What one number can tell
+        is the scale: the masses not in :attr:`given` become Table 2.1's
+        scaled by one factor ``s``, the mass the FE's rigid-body modes imply
+        less the given parts', over Table 2.1's mass of the parts not given
+        (the axle, ``n_discs`` discs, two wheels, and the two axleboxes when
+        the FE holds them).  The axlebox's inertia not given follows its mass
+        as a geometrically similar box (``m ∝ L³``, ``I ∝ m L²``: the ratio to
+        the power 5/3); rim and web not given are Table 2.1's shares of the
+        wheel.  A description that gives every part is compared with the FE's
+        mass instead.
+
+        Parameters
+        ----------
+        fe_mass : float or None
+            Total mass the FE's rigid-body modes imply [kg] (thesis eq. 2.29
+            on the rigid modes; None: unknown, the masses stay as they are).
+        axleboxes_in_fe : bool
+            That mass includes the two axleboxes.
+
+        Returns
+        -------
+        description : WheelsetDescription
+            With the derived masses (:attr:`given` unchanged: they were not given).
+        notes : tuple of str
+            Where each mass came from; a disagreement with the FE's mass beyond
+            :data:`MASS_NOTE_RTOL`.
+        """
+        counts = {"axle_mass": 1, "disc_mass": self.n_discs, "wheel_mass": 2,
+                  "axlebox_mass": 2 if axleboxes_in_fe else 0}
+        # stated: read from a file (``given``) or set to another value than Table 2.1's when constructed
+        stated = set(self.given) | {k for k, v in TABLE_2_1_MASSES.items() if getattr(self, k) != v}
+        if tuple(self.axlebox_inertia) != TABLE_2_1_AXLEBOX_INERTIA:
+            stated.add("axlebox_inertia")
+        free = [k for k in TABLE_2_1_MASSES if k not in stated]
+        given = [k for k in TABLE_2_1_MASSES if k in stated]
+        label = {"axle_mass": "axle", "disc_mass": "disc", "wheel_mass": "wheel", "axlebox_mass": "axlebox"}
+        what = "with its two axleboxes" if axleboxes_in_fe else "without axleboxes"
+        notes = []
+        if given:
+            notes.append("masses given by the description: " + ", ".join(
+                f"{label[k]} {getattr(self, k):.4g} kg" for k in given))
+        if fe_mass is None or not math.isfinite(fe_mass) or fe_mass <= 0:
+            if free:
+                notes.append("the FE's total mass is unknown (no six rigid-body modes), so the masses not given are "
+                             "thesis Table 2.1's as they are (" + ", ".join(
+                                 f"{label[k]} {getattr(self, k):.4g} kg" for k in free) + "); state them ("
+                             + ", ".join(MASS_KEYS[k] for k in free) + ")")
+            return self, tuple(notes)
+        given_mass = sum(counts[k] * getattr(self, k) for k in given)
+        table_free = sum(counts[k] * TABLE_2_1_MASSES[k] for k in free)
+        left = fe_mass - given_mass
+        if table_free > 0 and left > 0:
+            s = left / table_free
+            how = (f"Table 2.1's proportions scaled by {s:.4g} to the {left:.1f} kg the FE's rigid-body mass "
+                   f"({fe_mass:.1f} kg, {what}) leaves" + (" after the given parts" if given else ""))
+            if abs(s - 1.0) <= TABLE_2_1_MATCH:
+                s = 1.0
+                how = (f"thesis Table 2.1's as they are (the {left:.1f} kg the FE's rigid-body mass, {fe_mass:.1f} kg "
+                       f"{what}, leaves" + (" after the given parts" if given else "") + " is Table 2.1's to "
+                       f"{100 * TABLE_2_1_MATCH:g} %)")
+        else:
+            # nothing the FE holds is left to scale (or the given parts already outweigh it): the design's scale
+            table_all = sum(counts[k] * TABLE_2_1_MASSES[k] for k in TABLE_2_1_MASSES)
+            s = fe_mass / table_all
+            how = (f"Table 2.1's scaled by {s:.4g}, the FE's rigid-body mass ({fe_mass:.1f} kg, {what}) over Table "
+                   f"2.1's {table_all:.0f} kg of the same parts")
+            off = (given_mass - fe_mass) / fe_mass
+            if abs(off) > MASS_NOTE_RTOL:
+                notes.append(f"the description's masses add up to {given_mass:.1f} kg ({what}), {100 * off:+.0f} % "
+                             f"from the FE's rigid-body mass {fe_mass:.1f} kg: check them (and the FE's units)")
+        changes: dict = {k: s * TABLE_2_1_MASSES[k] for k in free}
+        if "axlebox_inertia" not in stated:
+            ratio = changes.get("axlebox_mass", self.axlebox_mass) / TABLE_2_1_MASSES["axlebox_mass"]
+            changes["axlebox_inertia"] = tuple(ratio ** (5 / 3) * v for v in TABLE_2_1_AXLEBOX_INERTIA)
+        if "wheel_mass" in changes:
+            # rim and web follow the wheel unless stated (a value other than the shares of the wheel)
+            shares = {"rim_mass": RIM_SHARE, "web_mass": WEB_SHARE}
+            changes.update({k: None for k, f in shares.items() if k not in self.given
+                            and abs(getattr(self, k) - f * self.wheel_mass) <= 1e-9 * self.wheel_mass})
+        out = replace(self, **changes)
+        if free:
+            parts = []
+            for k in free:
+                text = f"{label[k]} {getattr(out, k):.4g} kg"
+                if k == "wheel_mass":
+                    text += f" (rim {out.rim_mass:.4g}, web {out.web_mass:.4g} kg: Table 2.1's shares)"
+                if k == "axlebox_mass" and "axlebox_inertia" not in stated:
+                    text += f" (inertia {'/'.join(f'{v:.3g}' for v in out.axlebox_inertia)} kg m^2)"
+                parts.append(text)
+            notes.append(f"masses not given: {how}: " + ", ".join(parts) + " (state "
+                         + ", ".join(MASS_KEYS[k] for k in free) + " if the design's differ)")
+        return out, tuple(notes)
 
     def to_dict(self) -> dict:
         """JSON-ready values, and which were given."""
@@ -211,6 +364,7 @@ SCHEMA: dict[str, dict[str, str]] = {
               "rolling_radius_m": "rolling_radius", "rim_radius_m": "rim_radius", "hub_radius_m": "hub_radius",
               "hub_plane_L_m": "hub_planes.L", "hub_plane_R_m": "hub_planes.R"},
     "rig": {"hanging_points": "hanging_points"},
+    "primary_suspension": {"stiffness_N_per_m": "suspension_stiffness", "damping_N_s_per_m": "suspension_damping"},
 }
 
 #: the largest description file read (a description is a few hundred bytes)

@@ -89,3 +89,26 @@ def test_an_unforeseen_error_type_reaches_the_user_as_one_line(monkeypatch, caps
     assert "Traceback" not in err and "-v" in err
     assert cli.main(["-v", "lab", "scenarios"]) == 1
     assert "Traceback" in capsys.readouterr().err
+
+
+def test_cli_simulates_another_wheelset_design(tmp_path, capsys):
+    """``--design``: the light metro wheelset's campaign; its FE weighs what that design's parts weigh (axle, two
+    wheels, two discs, two axleboxes: 890 kg), so the campaign is not the thesis's
+    wheelset renamed. A truncation next to one of the design's modes is refused, naming it."""
+    import fem_import
+    from fem_import.checks import rigid_body_mass
+    from lab_data.designs import get_design
+
+    assert main(["-q", "lab", "simulate", "--scenario", "control", "--design", "metro", "--out",
+                 str(tmp_path / "metro")]) == 0
+    p = get_design("metro")
+    parts = p.axle_mass + 2 * (p.wheel_mass + p.disc_mass + p.axlebox_mass)
+    m = rigid_body_mass(fem_import.read(tmp_path / "metro" / "fe_design.uff"))
+    assert m is not None and m.mass == pytest.approx(parts, rel=0.01)
+    capsys.readouterr()
+    # the freight design has four modes at 2017.7 Hz: an export cut at 2000 Hz would split them
+    assert main(["-q", "lab", "simulate", "--scenario", "control", "--design", "freight", "--fe-export-hz", "2000",
+                 "--out", str(tmp_path / "freight")]) != 0
+    err = capsys.readouterr().err
+    assert "2000" in err and "gap of the spectrum" in err and "Traceback" not in err
+    assert not (tmp_path / "freight").exists()

@@ -34,12 +34,17 @@ they fit (one residual pair or one modal constant per channel) and prefers a
 physical effect that explains the same evidence with few parameters.
 
 What the effects assume that a user may have to supply (wheelset
-description; Table 2.1 defaults otherwise): the axlebox's mass and inertia
-(78 kg; 0.9/1.2/0.9 kg m²) and, for an FE without six rigid-body modes,
-whether the FE carries it; the wheel's mass split (251 kg: rim 150 kg, web
-80 kg, hub the rest) and radii when the FE is not a shell/solid wheel;
-where the wheelset hung (else a symmetric pair of slings along the axle is
-fitted).
+description; otherwise thesis Table 2.1's proportions scaled to the FE's
+rigid-body mass, :meth:`receptance.wheelset_description.WheelsetDescription.fitted_to_fe`,
+and said in the assumptions): the axlebox's mass and inertia (Table 2.1:
+78 kg; 0.9/1.2/0.9 kg m²) and, for an FE that neither ties a node of its
+own to the journal nor lumps a mass there, whether the FE carries it; the
+wheel's mass split (Table 2.1: 251 kg, rim 150/251 and web 80/251 of it,
+hub the rest) and radii when the FE is not a shell/solid wheel; where the
+wheelset hung (else a symmetric pair of slings along the axle is fitted).
+A mass taken off an FE node is checked against what the node carries
+(:func:`receptance.diagnosis.geometry.removable_mass`): more is refused as
+not applicable, naming the description key to state.
 """
 
 from __future__ import annotations
@@ -52,7 +57,7 @@ import pandas as pd
 
 from receptance.diagnosis.errors import EffectNotApplicable
 from receptance.diagnosis.geometry import (SIDES, axlebox_attachment, hanging_attachment, needs_rotations,
-                                           wheel_attachment, wheelset_geometry)
+                                           removable_mass, wheel_attachment, wheelset_geometry)
 from receptance.dofs import Point
 from receptance.effect_modifications import (BearingBodies, RigSprings, SeatJoints, SensorMasses, SlingSprings)
 from receptance.modal_model import ChannelTerms, ModalModel, ModelError
@@ -79,6 +84,10 @@ class Parameter:
     #: the bounds are the geometry's limits (a position along the axle), not plausibility limits: a value at a bound
     #: is a place (the axle end), not an implausible fit
     geometric: bool = False
+    #: a ratio of one side over the other (right over left) scales these parameters on one side only: a fit
+    #: searches their geometric mean over the two sides, so that the ratio does not move the mean (left and
+    #: right swapped otherwise make two valleys one parameter at a time cannot join)
+    scales: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if not 0 < self.lower < self.initial < self.upper:
@@ -213,6 +222,30 @@ def _need_points(effect: str, model: ModalModel, names: Sequence[str]) -> None:
                                   f"add {', '.join(missing)} (name, fe_node, x, y, z) to points.csv")
 
 
+def _check_modal_masses(effect: str, model: ModalModel, att: Attachment, what: str, keys: str) -> None:
+    """Refuse an attachment whose mass removal leaves the model without finite poles.
+
+    The wheel-seat joint takes the wheel's rigid mass off the seat and hands the momentum of the wheel's
+    deformation back to the FE modes (floating frame): its mass matrix is indefinite by construction (the frame's
+    coordinates are redundant with the modes'), so neither the seat's apparent mass nor positive definiteness tells
+    whether the FE carries the wheel. What does: with more wheel taken off than the FE holds, a pole keeps no
+    energy in the FE coordinates and the solve yields non-finite poles (before: "matrix contains invalid numeric
+    entries", reported as a toolkit fault). Tried once, at the catalogue's starting stiffnesses.
+    """
+    trial = att.apply(model, {p.name: p.initial for p in att.parameters})
+    try:
+        with np.errstate(over="ignore", divide="ignore", invalid="ignore"):  # the failure is said below, once
+            f = trial.modes()["f_hz"].to_numpy()
+        ok = bool(np.all(np.isfinite(f)))
+    except (ValueError, FloatingPointError, np.linalg.LinAlgError):
+        ok = False
+    if not ok:
+        raise EffectNotApplicable(effect, f"taking {what} off the FE leaves the model without finite poles: the FE "
+                                          f"carries less than that (a negative net mass), so the part of this "
+                                          f"design is lighter",
+                                  f"state the design's {keys} in the wheelset description")
+
+
 # ----------------------------------------------------------------------------------- the effects
 @register_effect
 @dataclass(frozen=True)
@@ -337,8 +370,9 @@ class AxleboxBearing(Effect):
     lumps it on the journal node or leaves it out
     (:func:`receptance.diagnosis.geometry.axlebox_attachment` decides from the
     geometry and the FE's mass, and says so).  ``mass`` and ``inertia``
-    (default: the wheelset description's, Table 2.1: 78 kg, a 0.3 × 0.22 ×
-    0.3 m box) are not fitted.
+    (default: the wheelset description's, else Table 2.1's 78 kg,
+    0.3 × 0.22 × 0.3 m box scaled to the FE's rigid-body mass) are not fitted:
+    the frequencies tell only stiffness over mass.
     """
 
     name: ClassVar[str] = "axlebox_bearing"
@@ -353,7 +387,8 @@ class AxleboxBearing(Effect):
                 Parameter("axial_N_per_m", "N/m", 1e6, 1e11, 3e8, "axial bearing stiffness per axlebox"),
                 Parameter("rocking_Nm_per_rad", "N m/rad", 1e4, 1e9, 1e7, "rocking stiffness per axlebox"),
                 Parameter("right_over_left", "-", 0.5, 2.0, 1.0,
-                          "stiffness of the right bearing over the left (two bearings never quite match)"))
+                          "stiffness of the right bearing over the left (two bearings never quite match)",
+                          scales=("radial_N_per_m", "axial_N_per_m", "rocking_Nm_per_rad")))
 
     def attach(self, model, setups=(), description=None):
         desc = description or WheelsetDescription()
@@ -367,11 +402,16 @@ class AxleboxBearing(Effect):
         needs_rotations(model, self.name, "its rocking springs act on the journal's rotation and carry the "
                                           "axlebox's inertia")
         geo = wheelset_geometry(model, desc, effect=self.name)
+        desc = geo.description  # the masses not given fitted to the FE's rigid-body mass
         boxes = [axlebox_attachment(model, geo, s, setups, effect=self.name) for s in self.sides]
         journals = tuple(Point(f"journal_{b.side}", b.journal_node, b.centre) for b in boxes)
+        # a negative net mass at the journal has no physical meaning (and a pole without energy in the FE)
+        carried = tuple(removable_mass(model, j, desc.axlebox_mass, desc.axlebox_inertia, effect=self.name,
+                                       part="axlebox", keys="[axlebox] mass_kg and inertia_kg_m2")
+                        for j, b in zip(journals, boxes) if b.mass_in_fe)
 
         data = {"boxes": tuple(boxes), "mass": desc.axlebox_mass, "inertia": tuple(desc.axlebox_inertia)}
-        return self._attached(data, journals, tuple(b.note for b in boxes))
+        return self._attached(data, journals, tuple(b.note for b in boxes) + geo.mass_notes + carried)
 
     def build(self, v, data):
         out = []
@@ -423,8 +463,8 @@ class WheelSeatJoint(Effect):
     modes.  The two exchange inertia — the web and rim moving relative to the
     hub carry momentum (the umbrella mode pushes the hub along the axle) —
     and a modal export has no mass matrix, so the wheel's mass is laid out
-    from its drawing (wheelset description; Table 2.1: 251 kg, rim 150 kg,
-    web 80 kg) on the wheel's FE nodes, which are found from the contact
+    from its drawing (wheelset description; else Table 2.1's 251 kg wheel,
+    rim 150 kg, web 80 kg, scaled to the FE's rigid-body mass) on the wheel's FE nodes, which are found from the contact
     point through the mesh (shell and solid wheels) or are the rim body's
     node (a rim on web springs):
     :func:`receptance.diagnosis.geometry.wheel_attachment`.  The wheel's
@@ -455,6 +495,7 @@ class WheelSeatJoint(Effect):
         needs_rotations(model, self.name, "its rocking and torsional springs act on the seat's and the hub's "
                                           "rotations, and the wheel's mass moves rigidly with the hub")
         geo = wheelset_geometry(model, desc, effect=self.name)
+        desc = geo.description  # the masses not given fitted to the FE's rigid-body mass
         wheels = [wheel_attachment(model, geo, s, effect=self.name) for s in self.sides]
         seats = tuple(Point(f"seat_{w.side}", w.seat_node, w.centre) for w in wheels)
         fixed = dict(sides=tuple(self.sides), hub_nodes=tuple(w.reference_node for w in wheels),
@@ -463,7 +504,9 @@ class WheelSeatJoint(Effect):
                      inertias=tuple(w.inertia for w in wheels),
                      coupling=tuple(tuple(map(tuple, np.asarray(w.coupling))) for w in wheels))
 
-        return self._attached(fixed, seats, tuple(w.note for w in wheels))
+        att = self._attached(fixed, seats, tuple(w.note for w in wheels) + geo.mass_notes)
+        _check_modal_masses(self.name, model, att, f"the wheel's {desc.wheel_mass:.4g} kg", "[wheel] mass_kg")
+        return att
 
     def build(self, v, data):
         return [SeatJoints(**data, rocking=v["rocking_Nm_per_rad"], radial=v["radial_N_per_m"],

@@ -2,9 +2,22 @@
 
 The complex misfit of a stiffness is full of narrow valleys (a sharp mode
 sliding past a measured peak), so the parameters are fitted on smoothed log
-spectra: a coordinate search on sixth-octave levels finds the basin — one
-pass over the whole bounds (17 log-spaced values per parameter), one local
-pass around the best (±2 grid steps) — and a finer pass and a bounded
+spectra.  A global stage on sixth-octave levels finds the basin
+(:func:`_global_search`) from the effect's whole physical bounds, never from
+a start tuned to one wheelset: a joint space-filling design (scrambled
+Sobol points, their number scaled to the parameter count) — parameters are
+coupled (the left bearing's rocking and the right/left ratio move the same
+modes), so a search of one parameter at a time from a fixed start lands in
+whichever valley the start lies in — then local coordinate passes (±2 grid
+steps) from the best few distinct points, and from the best of them a sweep
+of each parameter over its whole bounds at the resolution the sixth-octave
+levels resolve (a narrow basin — an axial mode sliding past one measured
+peak — that a coarse joint design steps over) and a small simplex search.
+A side ratio (``right_over_left``) is searched with the geometric mean of
+the two sides of the parameters it scales (:attr:`Parameter.scales`), not
+one side's value: left and right swapped is otherwise a second valley.
+Evaluations grow linearly with the parameter count (about 550 for the
+bearing's four, 100 for one).  A finer pass and a bounded
 least-squares polish on 24th-octave levels (3 % bands, a few half-power
 bandwidths of a 0.5 %-damped mode) place the modes.  The fit sees the
 physics alone — the design model (FE frequencies) plus the effect, so that
@@ -33,6 +46,7 @@ from typing import Callable, Sequence
 import numpy as np
 import pandas as pd
 import scipy.optimize
+from scipy.stats import qmc
 
 from ema._blas import one_blas_thread
 from receptance.diagnosis.effects import Attachment, Effect, ExperimentalMode, Residuals
@@ -42,18 +56,28 @@ from receptance.modal_model import ModalModel
 from receptance.wheelset_description import WheelsetDescription
 
 __all__ = ["EffectFit", "fit_effect", "BIC_THRESHOLD", "MIN_REDUCTION", "NOISE_MARGIN", "UNDETERMINED_DE",
-           "COARSE_POINTS", "GLOBAL_PASSES", "LOCAL_POINTS", "FINE_POINTS", "POLISH_NFEV", "SCORED_POINTS",
-           "SCORED_SPAN"]
+           "COARSE_POINTS", "GLOBAL_POINTS_PER_PARAMETER", "GLOBAL_STARTS", "SWEEP_DECADES", "SIMPLEX_EVALUATIONS",
+           "LOCAL_POINTS", "FINE_POINTS", "POLISH_NFEV", "SCORED_POINTS", "SCORED_SPAN"]
 
 BIC_THRESHOLD = 10.0
 MIN_REDUCTION = 0.10
 NOISE_MARGIN = 1.2
 #: a fitted parameter whose halving or doubling moves the summary error by less than this share is undetermined
 UNDETERMINED_DE = 0.01
-#: values per parameter of the global pass (log-spaced over the bounds), of the local pass (grid steps around the
-#: best) and of the fine pass (±0.15 decade); function evaluations of the least-squares polish
+#: the grid of the local passes: COARSE_POINTS log-spaced values span a parameter's bounds, a local pass tries
+#: LOCAL_POINTS grid steps around the best; values per parameter of the fine pass (±0.15 decade); function
+#: evaluations of the least-squares polish
 COARSE_POINTS = 13
-GLOBAL_PASSES = 1
+#: the global stage: scrambled Sobol points per fitted parameter (a power of two at least this many times the
+#: parameter count, so the joint design grows with the dimension, not exponentially as a grid would), and how many
+#: of its best mutually distinct points are refined locally
+GLOBAL_POINTS_PER_PARAMETER = 32
+GLOBAL_STARTS = 3
+#: the step [decades] of the whole-bounds sweep: sixth-octave levels resolve a frequency shift of 2^(1/6), and a
+#: stiffness (or mass) moves its modes as its square root (f = sqrt(k/m) / 2 pi), so 2^(1/3) in the parameter
+SWEEP_DECADES = 2 * float(np.log10(2.0)) / 6
+#: function evaluations per parameter of the joint (Nelder-Mead) step that ends the global stage
+SIMPLEX_EVALUATIONS = 20
 LOCAL_POINTS = 5
 FINE_POINTS = 5
 POLISH_NFEV = 10
@@ -136,7 +160,8 @@ def fit_effect(effect: Effect, model: ModalModel, measurements: Sequence[Measure
     description : WheelsetDescription, optional
         What the FE cannot tell (Table 2.1 defaults otherwise).
     start : dict, optional
-        Starting values by parameter name (e.g. a previous round's fit).
+        Values by parameter name (e.g. a previous round's fit) tried with the
+        global stage's design, as the catalogue's starting values are.
     band_hz : (float, float)
         The diagnosis band: its octave cells define the error, the noise floor,
         the smoothed spectra and the score (``before`` must be on the same band).
@@ -190,15 +215,17 @@ def fit_effect(effect: Effect, model: ModalModel, measurements: Sequence[Measure
     def fine_cost(x):
         return fine.cost(frfs(x, 2))
 
-    grid = [np.linspace(a, b, COARSE_POINTS) for a, b in zip(lo, hi)]
-    step = (hi - lo) / (COARSE_POINTS - 1)
-    half = (LOCAL_POINTS - 1) // 2
-    x, best = x0.copy(), coarse_cost(x0)
-    for _ in range(GLOBAL_PASSES):
-        x, best = _coordinate_pass(x, best, coarse_cost, lambda i, x: grid[i])
-    if LOCAL_POINTS > 1:
-        x, best = _coordinate_pass(x, best, coarse_cost, lambda i, x: np.clip(
-            x[i] + step[i] * np.arange(-half, half + 1), lo[i], hi[i]))
+    # the catalogue's starting values (and a previous round's fit) are two more points of the global design, not
+    # where the search begins: a start that suits one wheelset puts another in the wrong valley
+    initial = np.log10([p.initial for p in params])
+    # a side ratio's parameters are searched as their geometric mean over the two sides (Parameter.scales), x = A y:
+    # the ratio then moves the two sides apart, not one side away from the other
+    A = np.eye(len(params))
+    for j, p in enumerate(params):
+        A[[i for i, q in enumerate(params) if q.name in p.scales], j] = -0.5
+    y, _ = _global_search(lambda y: coarse_cost(A @ y), lo, hi,
+                          starts=[np.linalg.solve(A, s) for s in ([x0, initial] if start else [x0])])
+    x = np.clip(A @ y, lo, hi)
     best = fine_cost(x)
     if FINE_POINTS > 1:
         x, best = _coordinate_pass(x, best, fine_cost, lambda i, x: np.clip(
@@ -233,6 +260,77 @@ def fit_effect(effect: Effect, model: ModalModel, measurements: Sequence[Measure
         unc = {p.name: float("inf") for p in params}
     return _score(att, values, unc, model, measurements, before, tables, band_hz, params=params, x=x, lo=lo, hi=hi,
                   t0=t0, n_eval=count[0])
+
+
+def _global_search(cost: Callable, lo: np.ndarray, hi: np.ndarray, starts: Sequence = (), *,
+                   seed: int = 0) -> tuple[np.ndarray, float]:
+    """The basin of ``cost`` over the box ``lo``..``hi`` (log10 of the parameters), searched jointly.
+
+    Three steps, each over the whole bounds (module docstring): ``cost`` at a
+    scrambled Sobol design of :data:`GLOBAL_POINTS_PER_PARAMETER` points per
+    parameter (rounded up to a power of two) and at ``starts``; local
+    coordinate passes (±``LOCAL_POINTS // 2`` steps of the
+    :data:`COARSE_POINTS` grid, until no gain, at most two) from the
+    :data:`GLOBAL_STARTS` best points that lie more than that many steps
+    apart in some parameter; from the best result, a sweep of each parameter
+    over its bounds in steps of :data:`SWEEP_DECADES`, a local pass at that
+    step and a Nelder–Mead simplex of that size (:data:`SIMPLEX_EVALUATIONS`
+    per parameter; coupled parameters move together).  Deterministic
+    (``seed`` scrambles the design).
+
+    Parameters
+    ----------
+    cost : callable
+        ``cost(x) -> float`` of a point ``x`` (shape ``(d,)``).
+    lo, hi : ndarray
+        The bounds, ``lo < hi``.
+    starts : sequence of ndarray, optional
+        Points added to the design (clipped to the bounds).
+    seed : int
+
+    Returns
+    -------
+    x : ndarray
+    cost : float
+    """
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    d = lo.size
+    u = qmc.Sobol(d, scramble=True, seed=seed).random_base2(int(np.ceil(np.log2(max(GLOBAL_POINTS_PER_PARAMETER * d,
+                                                                                       2)))))
+    design = [np.clip(np.asarray(s, float), lo, hi) for s in starts] + list(lo + u * (hi - lo))
+    costs = np.array([cost(x) for x in design])
+    step = (hi - lo) / (COARSE_POINTS - 1)
+    half = max((LOCAL_POINTS - 1) // 2, 1)
+    chosen: list[int] = []
+    for i in np.argsort(costs, kind="stable"):
+        if all(np.max(np.abs(design[i] - design[j]) / step) > half for j in chosen):
+            chosen.append(int(i))
+        if len(chosen) == GLOBAL_STARTS:
+            break
+
+    def local(x, best, steps):
+        for _ in range(2):
+            x_new, best_new = _coordinate_pass(x, best, cost, lambda i, x: np.clip(
+                x[i] + steps[i] * np.arange(-half, half + 1), lo[i], hi[i]))
+            gained = best_new < best
+            x, best = x_new, best_new
+            if not gained:
+                break
+        return x, best
+
+    refined = [local(design[i].copy(), costs[i], step) for i in chosen]
+    x, best = min(refined, key=lambda r: r[1])
+    # a basin narrower than the design's spacing in one parameter (its mode sliding past one measured peak)
+    x, best = _coordinate_pass(x, best, cost, lambda i, x: np.linspace(
+        lo[i], hi[i], int(np.ceil((hi[i] - lo[i]) / SWEEP_DECADES)) + 1))
+    x, best = local(x, best, np.full(d, SWEEP_DECADES))
+    # last, jointly: several parameters a step apart at once (a coupled pair) is a move no coordinate pass makes
+    inward = np.where(x + SWEEP_DECADES > hi, -SWEEP_DECADES, SWEEP_DECADES)
+    simplex = np.vstack([x] + [x + inward * e for e in np.eye(d)])
+    res = scipy.optimize.minimize(cost, x, method="Nelder-Mead", bounds=list(zip(lo, hi)),
+                                  options={"initial_simplex": simplex, "maxfev": SIMPLEX_EVALUATIONS * d,
+                                           "xatol": 0.01, "fatol": 1e-3 * abs(best)})
+    return (res.x, float(res.fun)) if res.fun < best else (x, best)
 
 
 def _coordinate_pass(x: np.ndarray, best: float, cost: Callable, values: Callable) -> tuple[np.ndarray, float]:

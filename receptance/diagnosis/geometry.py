@@ -25,11 +25,25 @@ Axleboxes (:func:`axlebox_attachment`).  The journal is the axle-line node
 nearest the axlebox centre.  An FE node of its own at the centre (not on the
 axle line; or the points table's ``axlebox`` node when that is not an axle
 node) makes the axlebox "its own node".  Whether the FE carries the
-axlebox's mass — lumped on the journal or on its node — follows from the
-total mass the rigid-body modes imply (:func:`fem_import.checks.rigid_body_mass`)
-against the description's wheelset mass with and without the two
-axleboxes, whichever is nearer; the description may state it
-(``axlebox.in_fe``).
+axlebox's mass: the description may state it (``axlebox.in_fe``); else an
+own node rigidly tied to the journal is the axlebox modelled in the FE, and
+a lumped-mass element (FE descriptor 161) on the journal node (not on every
+axle node) is the axlebox lumped there; only without either is the total
+mass the rigid-body modes imply (:func:`fem_import.checks.rigid_body_mass`)
+compared with the described wheelset with and without the two axleboxes —
+the description's own masses when it gives them (relatively: nearer, and
+within :data:`~receptance.wheelset_description.MASS_NOTE_RTOL`), else the
+lumped case is assumed and said.
+
+Masses (:meth:`~receptance.wheelset_description.WheelsetDescription.fitted_to_fe`).
+The masses the description does not give are Table 2.1's proportions scaled
+to the FE's rigid-body mass (:attr:`WheelsetGeometry.mass_notes` says how).
+Before the bearing takes the axlebox off the journal it checks that the
+node carries it (:func:`removable_mass`): the FE's retained modes give the
+apparent mass at the node, ``(Σ φ φᵀ)⁻¹`` over its DOFs, the most a rigid
+part there can weigh; more would leave the model a negative kinetic energy
+(the wheel-seat joint, whose floating frame hands the wheel's deformation
+momentum back to the modes, checks the modes' own masses instead).
 
 Wheels (:func:`wheel_attachment`).  The wheel's FE nodes are those reached
 from the contact point's node through the element connectivity without
@@ -47,17 +61,17 @@ from __future__ import annotations
 
 import logging
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from typing import Sequence
 
 import numpy as np
 
 from receptance.dofs import Point
 from receptance.diagnosis.errors import EffectNotApplicable
-from receptance.wheelset_description import WheelsetDescription
+from receptance.wheelset_description import MASS_KEYS, MASS_NOTE_RTOL, TABLE_2_1_MASSES, WheelsetDescription
 
 __all__ = ["WheelsetGeometry", "wheelset_geometry", "needs_rotations", "moves_with", "TIED_RTOL", "AxleboxAttachment", "axlebox_attachment", "WheelAttachment",
-           "wheel_attachment", "hanging_attachment", "total_mass", "AXIS_FRACTION", "COINCIDE_FRACTION", "JOURNAL_FRACTION",
+           "wheel_attachment", "hanging_attachment", "total_mass", "removable_mass", "AXIS_FRACTION", "COINCIDE_FRACTION", "JOURNAL_FRACTION",
            "WHEEL_HALF_WIDTH", "WHEEL_OUTER", "BEAM_DESCRIPTORS", "SIDES"]
 
 log = logging.getLogger("receptance")
@@ -102,8 +116,15 @@ class WheelsetGeometry:
     total_mass : float or None
         Mass the rigid-body modes imply [kg] (None: no six rigid modes or no coordinates).
     description : WheelsetDescription
+        The description with the masses it does not give fitted to the FE's
+        (:meth:`WheelsetDescription.fitted_to_fe`).
     line_source : str
         How the axle line was found when the export's beam elements could not tell it ("" when they did).
+    mass_notes : tuple of str
+        Where each mass came from (the effects that use masses add them to their assumptions).
+    axlebox_cases : dict
+        Side -> how the FE holds that axlebox (:func:`_axlebox_case`), or the
+        :class:`EffectNotApplicable` that says why it cannot be told.
     """
 
     axis_xz: tuple[float, float]
@@ -114,6 +135,8 @@ class WheelsetGeometry:
     total_mass: float | None
     description: WheelsetDescription
     line_source: str = ""
+    mass_notes: tuple = ()
+    axlebox_cases: dict = field(default_factory=dict, repr=False)
 
     def radial(self, xyz: np.ndarray) -> np.ndarray:
         """Distance of points from the axle axis [m]."""
@@ -250,8 +273,21 @@ def wheelset_geometry(model, description: WheelsetDescription | None = None, *, 
                                           f"{tol:.3g} m of x = {axis_xz[0]:.3g}, z = {axis_xz[1]:.3g} m)",
                                   "export the axle's centre-line nodes (beam axle, or RBE2 spider centres)")
     rows = np.array(sorted(line, key=lambda r: fe.xyz[r, 1]))
-    return WheelsetGeometry(axis_xz, scale, source, ids[rows].astype(int), fe.xyz[rows, 1].copy(), total_mass(fe),
-                            desc, line_source)
+    geo = WheelsetGeometry(axis_xz, scale, source, ids[rows].astype(int), fe.xyz[rows, 1].copy(), total_mass(fe),
+                           desc, line_source)
+    # how the FE holds the axleboxes decides what its rigid-body mass includes, which the masses are fitted to
+    cases = {}
+    for s in SIDES:
+        try:
+            cases[s] = _axlebox_case(model, geo, s, effect)
+        except EffectNotApplicable as exc:
+            cases[s] = exc
+    known = [c for c in cases.values() if not isinstance(c, EffectNotApplicable)]
+    in_fe = all(c.mass_in_fe for c in known) if known else True
+    fitted, notes = desc.fitted_to_fe(geo.total_mass, in_fe)
+    if not known:
+        notes = notes + ("how the FE holds the axleboxes cannot be told here; its mass is taken to include them",)
+    return replace(geo, description=fitted, mass_notes=notes, axlebox_cases=cases)
 
 
 def total_mass(fe, rigid_below_hz: float = 1.0) -> float | None:
@@ -347,15 +383,27 @@ def _axlebox_sensors(setups: Sequence, side: str, centre: np.ndarray, own: int |
     return sorted(set(names))
 
 
-def axlebox_attachment(model, geometry: WheelsetGeometry, side: str, setups: Sequence = (), *,
-                       effect: str = "axlebox_bearing") -> AxleboxAttachment:
-    """Where the axlebox of ``side`` is in the FE and whether the FE carries its mass (module docstring).
+@dataclass(frozen=True)
+class _AxleboxCase:
+    """How the FE holds one axlebox (:func:`_axlebox_case`)."""
+
+    centre: np.ndarray
+    journal: int
+    own: int | None
+    case: str
+    mass_in_fe: bool
+    why: str
+
+
+def _axlebox_case(model, geometry: WheelsetGeometry, side: str, effect: str = "axlebox_bearing") -> _AxleboxCase:
+    """The axlebox of ``side``: its centre, journal, own node, and whether the FE carries its mass (module
+    docstring). ``geometry.description`` is the description as given (its masses not yet fitted to the FE).
 
     Raises
     ------
     EffectNotApplicable
-        No axlebox centre (neither description nor points table), no axle
-        node near it, or ``in_fe = "own_node"`` stated but no own node found.
+        No axlebox centre, no axle node near it, the axlebox on springs of its own in the FE, or
+        ``in_fe = "own_node"`` stated but no own node found.
     """
     desc = geometry.description
     fe = model.fe
@@ -389,9 +437,6 @@ def axlebox_attachment(model, geometry: WheelsetGeometry, side: str, setups: Seq
                                           f"does not move rigidly with the journal node {journal})",
                                   "this effect replaces a rigid axlebox; compare the FE's own bearing stiffness with "
                                   "the measurement instead (or export the design with the axlebox tied)")
-    m_fe = geometry.total_mass
-    with_boxes = desc.wheelset_mass + 2 * desc.axlebox_mass
-    without = desc.wheelset_mass
     if desc.axlebox_in_fe != "auto":
         case = desc.axlebox_in_fe
         if case == "own_node" and own is None:
@@ -399,32 +444,68 @@ def axlebox_attachment(model, geometry: WheelsetGeometry, side: str, setups: Seq
                                               f"other than the journal {journal} lies at the axlebox {side} centre",
                                       "give the axlebox node as axlebox_" + side + " in points.csv, or set "
                                       "axlebox.in_fe to 'lumped' or 'absent'")
-        mass_in_fe = case != "absent"
-        why = f"stated by the description ({desc.source or 'given'})"
-    else:
-        if m_fe is not None:
-            mass_in_fe = abs(m_fe - with_boxes) < abs(m_fe - without)
-            mass_text = (f"the FE's rigid-body modes give {m_fe:.1f} kg, nearer the wheelset with axleboxes "
-                         f"({with_boxes:.0f} kg) than without ({without:.0f} kg)" if mass_in_fe else
-                         f"the FE's rigid-body modes give {m_fe:.1f} kg, nearer the wheelset without axleboxes "
-                         f"({without:.0f} kg) than with them ({with_boxes:.0f} kg)")
-            off = min(abs(m_fe - with_boxes), abs(m_fe - without)) / (with_boxes if mass_in_fe else without)
-            if off > 0.1:
-                mass_text += f" (but {100 * off:.0f} % off: check the description's masses)"
-        else:
-            mass_in_fe = own is not None
-            mass_text = ("the FE's total mass is unknown (no six rigid-body modes); assumed "
-                         + ("the axlebox node carries its mass" if own is not None else
-                            "the axlebox is lumped on the journal (usual in rotor-dynamics models); state "
-                            "axlebox.in_fe in the description if not"))
-        case = "own_node" if own is not None else ("lumped" if mass_in_fe else "absent")
-        why = mass_text
-    carried = [f"axlebox_{side}"] + _axlebox_sensors(setups, side, centre, own, journal, R)
+        return _AxleboxCase(centre, journal, own, case, case != "absent",
+                            f"stated by the description ({desc.source or 'given'})")
+    if own is not None:
+        # a node of its own at the centre, moving rigidly with the journal, is the axlebox the FE models
+        return _AxleboxCase(centre, journal, own, "own_node", True,
+                            "the FE models the axlebox: a node of its own at the centre moves rigidly with the journal")
+    masses = {int(n) for e in fe.elements if e.fe_descriptor == 161 for n in e.nodes}
+    if journal in masses and not line <= masses:
+        # what a beam axle lumps on its journal node, and on no other axle node by construction, is the axlebox
+        return _AxleboxCase(centre, journal, None, "lumped", True,
+                            f"a lumped-mass element sits on the journal node {journal} (not on every axle node)")
+    m_fe = geometry.total_mass
+    if m_fe is None:
+        return _AxleboxCase(centre, journal, None, "lumped", True,
+                            "the FE's total mass is unknown (no six rigid-body modes); assumed the axlebox is lumped "
+                            "on the journal (usual in rotor-dynamics models); state axlebox.in_fe in the description "
+                            "if not")
+    # only the FE's total mass can tell: against the description's own masses when it gives them, else against
+    # Table 2.1's, which describe one wheelset, so only a near match counts
+    stated = {"axle_mass", "wheel_mass"} | ({"disc_mass"} if desc.n_discs else set())
+    ref = desc if stated <= desc.given else WheelsetDescription(n_discs=desc.n_discs)
+    whose = "the description's" if ref is desc else "thesis Table 2.1's"
+    without = ref.wheelset_mass
+    with_boxes = without + 2 * (desc.axlebox_mass if "axlebox_mass" in desc.given
+                                else TABLE_2_1_MASSES["axlebox_mass"])
+    mass_in_fe = abs(m_fe - with_boxes) < abs(m_fe - without)
+    off = abs(m_fe - (with_boxes if mass_in_fe else without)) / m_fe
+    if off <= MASS_NOTE_RTOL:
+        why = (f"the FE's rigid-body modes give {m_fe:.1f} kg, {whose} wheelset "
+               + (f"with axleboxes ({with_boxes:.0f} kg)" if mass_in_fe else f"without axleboxes ({without:.0f} kg)")
+               + f" to {100 * off:.1f} %")
+        return _AxleboxCase(centre, journal, None, "lumped" if mass_in_fe else "absent", mass_in_fe, why)
+    why = (f"neither an axlebox node, nor a lumped mass on the journal, and the FE's {m_fe:.1f} kg matches {whose} "
+           f"wheelset neither with ({with_boxes:.0f} kg) nor without axleboxes ({without:.0f} kg) within "
+           f"{100 * MASS_NOTE_RTOL:g} %: assumed lumped on the journal (usual in rotor-dynamics models); state "
+           f"axlebox.in_fe (and the masses) in the description")
+    return _AxleboxCase(centre, journal, None, "lumped", True, why)
+
+
+def axlebox_attachment(model, geometry: WheelsetGeometry, side: str, setups: Sequence = (), *,
+                       effect: str = "axlebox_bearing") -> AxleboxAttachment:
+    """Where the axlebox of ``side`` is in the FE and whether the FE carries its mass (module docstring).
+
+    Raises
+    ------
+    EffectNotApplicable
+        No axlebox centre (neither description nor points table), no axle
+        node near it, or ``in_fe = "own_node"`` stated but no own node found.
+    """
+    found = geometry.axlebox_cases.get(side)
+    if found is None:
+        found = _axlebox_case(model, geometry, side, effect)
+    if isinstance(found, EffectNotApplicable):
+        raise EffectNotApplicable(effect, found.reason, found.remedy)
+    desc = geometry.description
+    centre, journal, own, case, mass_in_fe = found.centre, found.journal, found.own, found.case, found.mass_in_fe
+    carried = [f"axlebox_{side}"] + _axlebox_sensors(setups, side, centre, own, journal, geometry.scale)
     what = {"own_node": f"its own FE node {own} (tied to the journal node {journal})",
             "lumped": f"lumped on the journal node {journal}",
             "absent": f"absent from the FE (journal node {journal})"}[case]
-    note = (f"axlebox {side}: {what}; {why}; the body is {desc.axlebox_mass:g} kg with inertia "
-            f"{'/'.join(f'{v:g}' for v in desc.axlebox_inertia)} kg m^2"
+    note = (f"axlebox {side}: {what}; {found.why}; the body is {desc.axlebox_mass:.4g} kg with inertia "
+            f"{'/'.join(f'{v:.3g}' for v in desc.axlebox_inertia)} kg m^2"
             + ("" if mass_in_fe else ", added (the FE lacks it)")
             + ("" if mass_in_fe is False else ", taken off the journal")
             + f"; {len(carried) - 1} sensor(s) move with it"
@@ -604,6 +685,75 @@ def _deformation_momentum(fe, nodes: np.ndarray, pts: np.ndarray, masses: np.nda
 
 
 # ------------------------------------------------------------------------------------- hanging points
+#: a part's rotary inertia taken off a node may exceed the node's apparent rotary inertia by this share: the
+#: apparent value bounds what the node carries only through the retained modes' rotations there, and a part's
+#: inertia is an estimate (Table 2.1's 0.9 kg m² box sits 0.5-1 % above the default design FE's journal); the
+#: small negative inertia left has its spurious pole at sqrt(k / |ΔI|), far above any band. Beyond it the node's
+#: rotation would carry a clearly negative kinetic energy.
+ROTARY_SLACK = 0.1
+
+
+def removable_mass(model, point: Point, mass: float, inertia=None, *, effect: str, part: str, keys: str) -> str:
+    """Check that the FE carries at ``point`` the mass (and inertia) an effect takes off there.
+
+    A part the FE holds rigidly at a node is moved onto a body of its own by
+    a negative point mass at the node (:func:`receptance.effect_modifications.detached_body_terms`).
+    The FE's retained modes give the node's apparent mass matrix
+    ``A = (T Tᵀ)⁻¹`` (``T``: the mass-normalised shapes' rows of its DOFs,
+    thesis eq. 2.24; with every mode kept ``A`` is the node's own mass,
+    with fewer it is more); the modified kinetic energy stays positive only
+    while the removed ``D ≤ A``, i.e. ``μ = λ_max(D^½ T Tᵀ D^½) ≤ 1``.
+
+    Parameters
+    ----------
+    model : ModalModel
+    point : Point
+        The node the part is taken off (a journal, a seat).
+    mass : float
+        [kg].
+    inertia : (float, float, float), optional
+        About x, y, z [kg m²]; checked with :data:`ROTARY_SLACK`.
+    effect, part, keys : str
+        For the message: the effect, the part's name, the description keys that state its mass.
+
+    Returns
+    -------
+    str
+        What the node carries against what is taken off (for the effect's assumptions).
+
+    Raises
+    ------
+    EffectNotApplicable
+        More mass (or clearly more inertia) than the node carries: naming the keys to state.
+    """
+    m = model if point.name in model.points else model.with_points([point])
+    T = m.rows([f"{point.name}:{a}" for a in ("x", "y", "z")])
+    flex = T @ T.T
+    apparent = 1.0 / float(np.linalg.eigvalsh(flex).max())
+    mu = mass / apparent
+    where = f"FE node {point.fe_node}" if point.fe_node is not None else point.name
+    if mu > 1.0:
+        raise EffectNotApplicable(effect, f"taking the {part}'s {mass:.4g} kg off {where} would leave a negative mass "
+                                          f"there: the FE's modes carry at most {apparent:.4g} kg at that node (its "
+                                          f"apparent mass), so the {part} of this design is lighter",
+                                  f"state the design's {keys} in the wheelset description (at most what the FE "
+                                  f"holds there)")
+    note = f"{where} carries up to {apparent:.4g} kg in the FE's modes, the {part} takes {100 * mu:.0f} % of it"
+    if inertia is not None:
+        Tr = m.rows([f"{point.name}:{a}" for a in ("rx", "ry", "rz")])
+        d = np.sqrt(np.asarray(inertia, float))
+        mu_r = float(np.linalg.eigvalsh(d[:, None] * (Tr @ Tr.T) * d[None, :]).max())
+        if mu_r > 1.0 + ROTARY_SLACK:
+            raise EffectNotApplicable(effect, f"taking the {part}'s rotary inertia "
+                                              f"{'/'.join(f'{v:.3g}' for v in inertia)} kg m^2 off {where} would "
+                                              f"leave a negative inertia there ({100 * mu_r:.0f} % of what the FE's "
+                                              f"modes carry at that node)",
+                                      f"state the design's {keys} in the wheelset description (at most what the "
+                                      f"FE holds there)")
+        note += f" and {100 * mu_r:.0f} % of its rotary inertia"
+    return note
+
+
 def hanging_attachment(model, geometry: WheelsetGeometry, *, effect: str = "rig_suspension"
                        ) -> list[Point] | None:
     """The described hanging points as model points (None when the description gives none: fit them).
