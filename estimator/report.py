@@ -139,6 +139,10 @@ def write_report(estimate, path, *, figures: Mapping[str, Path] | None = None,
             piv = ix[(ix["stretch"] == "run") & (ix["wheelset"] == e.leading)].pivot_table(
                 index=["rail", "band_mm"], columns="model", values="median_pk_pk_um").reset_index()
             parts.append(_table(piv))
+    cautions = _band_cautions(e)
+    if cautions:
+        parts.append("<div class='box warn'><b>Bands to read with care</b> (leading wheelset, whole run):<br>"
+                     + "<br>".join(_e(c) for c in cautions) + "</div>")
     # 7
     parts.append(f"<h2>{SECTION_TITLES[6]}</h2>")
     for k in sorted(f for f in fig if f.startswith("spectra_")):
@@ -171,3 +175,14 @@ def write_report(estimate, path, *, figures: Mapping[str, Path] | None = None,
     out = Path(path)
     out.write_text(page(f"Field estimate {e.run_id}", parts), encoding="utf-8")
     return out
+
+
+def _band_cautions(e) -> list[str]:
+    """One line per EN band whose level the contact filter's correction or the pinned-pinned resonance weakens
+    (:mod:`estimator.band_caution`)."""
+    ix = e.indexes
+    if ix.empty or "caution" not in ix:
+        return []
+    run = ix[(ix["stretch"] == "run") & (ix["wheelset"] == e.leading) & (ix["caution"] != "")]
+    return [f"{band} mm: {text}" for band, text in run.drop_duplicates("band_mm")[["band_mm", "caution"]]
+            .itertuples(index=False)]

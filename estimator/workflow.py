@@ -54,6 +54,7 @@ import pandas as pd
 from scipy import fft as sfft
 
 from estimator.config import EstimatorConfig
+from estimator.band_caution import band_cautions
 from estimator.contact_angles import CurvingModel, contact_angles
 from estimator.contact_filter import contact_gain
 from estimator.corrugation import MIN_PROMINENCE_DB, classify, model_resonances, spectral_peak
@@ -73,7 +74,7 @@ from estimator.standards.en13231 import band_indexes, exceedance
 from estimator.standards.en15610 import roughness_spectrum
 from estimator.wheel import MIN_SIGNIFICANCE, CircumferenceFit, circumference, comb, wheel_roughness
 from receptance.contact import ContactParameters
-from receptance.track import track_frf
+from receptance.track import pinned_pinned_frequency, track_frf
 from receptance.trackform import Trackform
 
 __all__ = ["FieldModel", "prepare", "with_wheel_radius", "in_service", "estimate_run", "transfer_classes",
@@ -572,6 +573,16 @@ def _stretches(fm: FieldModel, lo: float, hi: float) -> list[tuple[str, float, f
     return out
 
 
+def _pinned_pinned(fm: FieldModel, lo: float, hi: float) -> list[float]:
+    """Pinned-pinned frequencies [Hz] of the trackforms on chainage ``lo``..``hi`` (the default's where the line
+    gives none there)."""
+    key = ("pp", lo, hi)
+    if key not in fm.cache:
+        tfs = [t for a, b, t in fm.trackforms() if b > lo and a < hi] or [fm.default_trackform()]
+        fm.cache[key] = sorted({pinned_pinned_frequency(t) for t in tfs})
+    return fm.cache[key]
+
+
 def _nothing_estimated(run: Run, skipped: list[str]) -> NoValidDataError:
     why = "; ".join(skipped) or "every sample masked"
     return NoValidDataError(f"{run.source}: nothing could be estimated ({why}; masked share "
@@ -963,6 +974,9 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
             sel = slice(int(i0), int(i1))
             if i1 <= i0:
                 continue
+            cautions = [band_cautions(band, p.speed_m_s[sel], (f_lo, f_hi), fm.semi_axis_m, _pinned_pinned(fm, a, b),
+                                      contact_filter=cfg.contact_filter,
+                                      discrete_supports=cfg.trackform_supports == "discrete") for band in bands]
             for i, rail in enumerate(p.rails):
                 for bi, band in enumerate(bands):
                     # pk-pk is smooth over its window: statistics on the band's own (decimated) grid
@@ -976,7 +990,11 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
                         "median_pk_pk_um": float(np.median(pk[ok]) * 1e6) if ok.any() else math.nan,
                         "max_pk_pk_um": float(np.max(pk[ok]) * 1e6) if ok.any() else math.nan,
                         "threshold_um": cfg.thresholds_um[band],
-                        "exceedance_pct": exceedance(pk, cfg.thresholds_um[band] * 1e-6)})
+                        "exceedance_pct": exceedance(pk, cfg.thresholds_um[band] * 1e-6),
+                        "contact_correction_db": cautions[bi].contact_correction_db,
+                        "contact_capped": cautions[bi].contact_capped,
+                        "pinned_pinned_hz": cautions[bi].pinned_pinned_hz,
+                        "caution": cautions[bi].text if ok.any() else ""})
                 if name == "run":
                     continue
                 vs = p.speed_m_s[sel]
