@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Sequence
 
 import numpy as np
@@ -100,20 +101,9 @@ def band_cautions(band_mm: tuple[float, float], speeds_m_s: np.ndarray, inversio
         Whether the track model has discrete supports (then it holds the pinned–pinned resonance).
     """
     lam_lo, lam_hi = band_mm[0] * 1e-3, band_mm[1] * 1e-3
-    notes = []
-    correction_db, capped = 0.0, False
-    if contact_filter:
-        k = np.array([1 / lam_hi, 1 / lam_lo])
-        correction_db = float(20 * np.log10(contact_gain(k, semi_axis_m, MAX_GAIN_DB)).max())
-        capped = bool(contact_filter_response(1 / lam_lo, semi_axis_m) < 10 ** (-MAX_GAIN_DB / 20)
-                      or 2 * math.pi * semi_axis_m / lam_lo > 3.8)
-        if correction_db > CONTACT_CAUTION_DB:
-            notes.append(f"the contact-filter correction reaches +{correction_db:.1f} dB: the level depends on the "
-                         f"contact patch (a = {1e3 * semi_axis_m:.2f} mm) as much as on the measurement")
-        if capped:
-            lam_cap = _capped_below(semi_axis_m)
-            notes.append(f"wavelengths under {1e3 * lam_cap:.0f} mm are shorter than the patch lets the wheel feel: "
-                         f"the correction stops at +{MAX_GAIN_DB:g} dB there and their level is a lower bound")
+    correction_db, capped, contact_notes = _contact_part(float(band_mm[0]), float(band_mm[1]), float(semi_axis_m),
+                                                         bool(contact_filter))
+    notes = list(contact_notes)
     pp = math.nan
     v = np.asarray(speeds_m_s, float)
     v = np.abs(v[np.isfinite(v) & (v != 0)])
@@ -127,6 +117,29 @@ def band_cautions(band_mm: tuple[float, float], speeds_m_s: np.ndarray, inversio
                          f"the track model on continuous supports is least right: expect the level to read a few dB "
                          f"high")
     return BandCaution(correction_db, capped, pp, "; ".join(notes))
+
+
+@lru_cache(maxsize=256)
+def _contact_part(lam_lo_mm: float, lam_hi_mm: float, semi_axis_m: float, contact_filter: bool
+                  ) -> tuple[float, bool, tuple[str, ...]]:
+    """The contact filter's caution of a band: largest correction [dB], capped, sentences (one band, one patch:
+    the same on every stretch, so computed once)."""
+    if not contact_filter:
+        return 0.0, False, ()
+    lam_lo, lam_hi = lam_lo_mm * 1e-3, lam_hi_mm * 1e-3
+    notes = []
+    correction_db = float(20 * np.log10(contact_gain(np.array([1 / lam_hi, 1 / lam_lo]), semi_axis_m,
+                                                     MAX_GAIN_DB)).max())
+    capped = bool(contact_filter_response(1 / lam_lo, semi_axis_m) < 10 ** (-MAX_GAIN_DB / 20)
+                  or 2 * math.pi * semi_axis_m / lam_lo > 3.8)
+    if correction_db > CONTACT_CAUTION_DB:
+        notes.append(f"the contact-filter correction reaches +{correction_db:.1f} dB: the level depends on the "
+                     f"contact patch (a = {1e3 * semi_axis_m:.2f} mm) as much as on the measurement")
+    if capped:
+        notes.append(f"wavelengths under {1e3 * _capped_below(semi_axis_m):.0f} mm are shorter than the patch lets "
+                     f"the wheel feel: the correction stops at +{MAX_GAIN_DB:g} dB there and their level is a lower "
+                     f"bound")
+    return correction_db, capped, tuple(notes)
 
 
 def _capped_below(semi_axis_m: float) -> float:

@@ -974,7 +974,10 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
             sel = slice(int(i0), int(i1))
             if i1 <= i0:
                 continue
-            cautions = [band_cautions(band, p.speed_m_s[sel], (f_lo, f_hi), fm.semi_axis_m, _pinned_pinned(fm, a, b),
+            v_sel = np.abs(p.speed_m_s[sel])
+            v_sel = v_sel[np.isfinite(v_sel) & (v_sel > 0)]
+            v_range = np.array([v_sel.min(), v_sel.max()]) if v_sel.size else v_sel  # all the cautions need
+            cautions = [band_cautions(band, v_range, (f_lo, f_hi), fm.semi_axis_m, _pinned_pinned(fm, a, b),
                                       contact_filter=cfg.contact_filter,
                                       discrete_supports=cfg.trackform_supports == "discrete") for band in bands]
             for i, rail in enumerate(p.rails):
