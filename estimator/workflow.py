@@ -976,7 +976,7 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
                 continue
             v_sel = np.abs(p.speed_m_s[sel])
             v_sel = v_sel[np.isfinite(v_sel) & (v_sel > 0)]
-            v_range = np.array([v_sel.min(), v_sel.max()]) if v_sel.size else v_sel  # all the cautions need
+            v_range = np.array([v_sel.min(), v_sel.max()]) if v_sel.size else v_sel  # the cautions use the range only
             cautions = [band_cautions(band, v_range, (f_lo, f_hi), fm.semi_axis_m, _pinned_pinned(fm, a, b),
                                       contact_filter=cfg.contact_filter,
                                       discrete_supports=cfg.trackform_supports == "discrete") for band in bands]

@@ -504,7 +504,8 @@ class ModalModel:
         if sel.size == 0:
             return _Solution(free, sel, np.zeros(0, complex), np.zeros((0, 0), complex), np.zeros((0, 0), complex),
                              np.zeros((0, 0)))
-        poles, left, right, N, share = _solve_coupled(M[np.ix_(sel, sel)], C[np.ix_(sel, sel)], K[np.ix_(sel, sel)])
+        poles, left, right, N, share = _solve_coupled(M[np.ix_(sel, sel)], C[np.ix_(sel, sel)], K[np.ix_(sel, sel)],
+                                                      identity_mass=_identity_mass(M, sel, m))
         if self.pins_test_modes:
             poles, factor = self._pin(poles, sel, share)
             left = left * factor[None, :]
@@ -649,7 +650,7 @@ class ModalModel:
         M, C, K = lab._system(base)
         m = len(self)
         sel = np.arange(M.shape[0])
-        poles, _, _, _, share = _solve_coupled(M, C, K)
+        poles, _, _, _, share = _solve_coupled(M, C, K, identity_mass=_identity_mass(M, sel, m))
         out = self.freqs_hz.copy()
         f_of_group: dict[tuple, list[float]] = {}
         for k, key in lab._assign(poles, sel, share).items():
@@ -766,15 +767,31 @@ class ModalModel:
         return df.sort_values("f_hz", kind="stable").reset_index(drop=True)
 
 
-def _solve_coupled(M, C, K):
+def _identity_mass(M: np.ndarray, sel: np.ndarray, m: int) -> np.ndarray:
+    """Per coupled coordinate, the mass that says which coordinate a pole is: 1 for a design mode (its own
+    mass-normalised modal mass), the diagonal of ``M`` for an added body.
+
+    A modification that takes mass off FE nodes lowers the diagonal of the FE coordinates; a floating wheel takes
+    off its whole rotary inertia, and with a layout slightly heavier than the FE's wheel the torsion coordinate's
+    diagonal turns negative (lab freight wheelset, 340 kg wheel: 0.041 at 320 kg, -0.019 at 340 kg), so a share
+    weighted by it would disown the torsion mode and pin its test frequency to another pole. Which design mode a
+    pole is, is its participation, not that diagonal.
+    """
+    w = np.diag(M)[sel].copy()
+    w[np.asarray(sel) < m] = 1.0
+    return w
+
+
+def _solve_coupled(M, C, K, identity_mass=None):
     """Poles of a small coupled system in coordinates, with the maps to residues and mass line.
 
     Returns ``poles`` (2p,), ``left`` (n, 2p) and ``right`` (2p, n) such that
     the residue of pole k between DOF rows ``To`` and ``Ti`` (over these
     coordinates) is ``(To @ left[:, k]) (right[k] @ Ti.T)``; ``mass_basis`` (n, r)
     mass-normalised unrestrained rigid-body directions (mass line
-    ``(To N)(Ti N)ᵀ``); ``share`` (n, 2p) the kinetic-energy share of each
-    coordinate in each pole.
+    ``(To N)(Ti N)ᵀ``); ``share`` (n, 2p) the share of each coordinate in
+    each pole, ``|v|²`` weighted by ``identity_mass`` (default the diagonal of
+    ``M``: its kinetic energy without cross terms).
     """
     n = M.shape[0]
     # unrestrained rigid-body directions: null space of K and C together; they give a mass line
@@ -815,7 +832,7 @@ def _solve_coupled(M, C, K):
         log.warning("the modified model's eigenvectors are nearly dependent (condition %.1e); receptances may be "
                     "inaccurate near repeated modes", 1 / max(rcond, 1e-300))
     # which coordinate each pole lives in: kinetic-energy share of its eigenvector (> 1/2 names an owner)
-    energy = np.abs(left) ** 2 * np.diag(M)[:, None]
+    energy = np.abs(left) ** 2 * (np.diag(M) if identity_mass is None else np.asarray(identity_mass))[:, None]
     share = energy / np.maximum(energy.sum(axis=0, keepdims=True), np.finfo(float).tiny)
     return lam, left, right, N, share
 
