@@ -228,10 +228,9 @@ def _check_modal_masses(effect: str, model: ModalModel, att: Attachment, what: s
     The wheel-seat joint takes the wheel's rigid mass off the seat and hands the momentum of the wheel's
     deformation back to the FE modes (floating frame): its mass matrix is indefinite by construction (the frame's
     coordinates are redundant with the modes'), so neither the seat's apparent mass nor positive definiteness tells
-    whether the FE carries the wheel's inertia; its translation is checked at the seat
-    (:func:`~receptance.diagnosis.geometry.removable_mass`). With more wheel taken off than the FE holds a pole may
-    keep no energy in the FE coordinates and the solve yield non-finite poles (before: "matrix contains invalid
-    numeric entries", reported as a toolkit fault). Tried once, at the catalogue's starting stiffnesses.
+    whether the FE carries the wheel. What does: with more wheel taken off than the FE holds, a pole keeps no
+    energy in the FE coordinates and the solve yields non-finite poles (before: "matrix contains invalid numeric
+    entries", reported as a toolkit fault). Tried once, at the catalogue's starting stiffnesses.
     """
     trial = att.apply(model, {p.name: p.initial for p in att.parameters})
     try:
@@ -505,11 +504,7 @@ class WheelSeatJoint(Effect):
                      inertias=tuple(w.inertia for w in wheels),
                      coupling=tuple(tuple(map(tuple, np.asarray(w.coupling))) for w in wheels))
 
-        # the wheel moves rigidly with its seat's translation in the FE: it cannot weigh more than the FE's modes
-        # carry there (the rotations are the floating frame's business: its layout hands them back to the modes)
-        carried = tuple(removable_mass(model, seat, desc.wheel_mass, effect=self.name, part="wheel",
-                                       keys="[wheel] mass_kg") for seat in seats)
-        att = self._attached(fixed, seats, tuple(w.note for w in wheels) + geo.mass_notes + carried)
+        att = self._attached(fixed, seats, tuple(w.note for w in wheels) + geo.mass_notes)
         _check_modal_masses(self.name, model, att, f"the wheel's {desc.wheel_mass:.4g} kg", "[wheel] mass_kg")
         return att
 

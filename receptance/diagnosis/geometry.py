@@ -42,9 +42,8 @@ Before the bearing takes the axlebox off the journal it checks that the
 node carries it (:func:`removable_mass`): the FE's retained modes give the
 apparent mass at the node, ``(Σ φ φᵀ)⁻¹`` over its DOFs, the most a rigid
 part there can weigh; more would leave the model a negative kinetic energy
-(the wheel-seat joint checks its wheel's mass against the seat's
-translation this way; its floating frame hands the wheel's rotary inertia
-back to the modes, so the rotations are not checked at the seat).
+(the wheel-seat joint, whose floating frame hands the wheel's deformation
+momentum back to the modes, checks the modes' own masses instead).
 
 Wheels (:func:`wheel_attachment`).  The wheel's FE nodes are those reached
 from the contact point's node through the element connectivity without
