@@ -10,23 +10,15 @@ masses stated in a description file as a user would, the bearing fit recovers th
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
-import pandas as pd
 import pytest
 
-import fem_import
-from ema import estimate_frf, read_hammer
 from lab_data.cache import campaign_dir
 from lab_data.designs import DESIGN_FE_MAX_HZ, get_design
-from receptance.diagnosis import Measurement, fit_effect, misfit
+from receptance.diagnosis import fit_effect, misfit
 from receptance.diagnosis import fitting
 from receptance.diagnosis.effects import AxleboxBearing
-from receptance.dofs import read_points
-from receptance.hybrid import hybrid_model
 from receptance.wheelset_description import read_description
-from test_hybrid_model import truth_pairing
 
 #: the design FE export's truncation must fall in a gap of each design's spectrum
 _EXPORT_HZ = {"metro": 2000.0, "freight": 1950.0}
@@ -71,14 +63,10 @@ def test_global_stage_leaves_the_start_valley_a_coordinate_search_stays_in():
 
 
 def _design_campaign(design: str, tmp_path):
-    folder = campaign_dir("bearing", design=design, fe_max_hz=DESIGN_FE_MAX_HZ[design],
-                          fe_export_hz=_EXPORT_HZ[design])
-    manifest = json.loads((folder / "truth.json").read_text())
-    fe = fem_import.read(folder / "fe_design.uff")
-    model = hybrid_model(fe, truth_pairing(manifest, "flexural", fe=fe, folder=folder),
-                         points=read_points(folder / "points.csv"), keep_fe="all", max_hz=500.0)
-    meas = [Measurement(estimate_frf(read_hammer(folder / f"{s}.uff", folder / f"{s}_channels.csv")),
-                        pd.read_csv(folder / f"{s}_channels.csv"), s) for s in ("flexural", "torsional")]
+    from lab_campaign_model import truth_paired
+
+    model, meas, manifest = truth_paired(campaign_dir("bearing", design=design, fe_max_hz=DESIGN_FE_MAX_HZ[design],
+                                                      fe_export_hz=_EXPORT_HZ[design]))
     # what the user knows of the design (its drawing), not the thesis's Table 2.1
     p = get_design(design)
     toml = tmp_path / f"{design}.toml"

@@ -17,19 +17,14 @@ stiffness within 25 %, the error down to 1.2 times the noise floor.
 from __future__ import annotations
 
 import functools
-import json
 
 import numpy as np
-import pandas as pd
 import pytest
 
-import fem_import
 from lab_data.cache import campaign_dir
 from lab_data.designs import DESIGN_FE_MAX_HZ
-from receptance.diagnosis import Measurement, diagnose, misfit
+from receptance.diagnosis import diagnose, misfit
 from receptance.diagnosis.effects import WheelSeatJoint
-from receptance.dofs import read_points
-from receptance.hybrid import hybrid_model
 from receptance.wheelset_description import WheelsetDescription
 
 pytestmark = pytest.mark.slow
@@ -40,17 +35,10 @@ RIGID_LIMIT = 100.0
 
 @functools.lru_cache(maxsize=1)
 def _freight_joint():
-    from ema import estimate_frf, read_hammer
-    from test_hybrid_model import truth_pairing
+    from lab_campaign_model import truth_paired
 
-    folder = campaign_dir("joint", design="freight", fe_max_hz=DESIGN_FE_MAX_HZ["freight"], fe_export_hz=1950.0)
-    manifest = json.loads((folder / "truth.json").read_text())
-    fe = fem_import.read(folder / "fe_design.uff")
-    model = hybrid_model(fe, truth_pairing(manifest, "flexural", fe=fe, folder=folder),
-                         points=read_points(folder / "points.csv"), keep_fe="all", max_hz=500.0)
-    meas = [Measurement(estimate_frf(read_hammer(folder / f"{s}.uff", folder / f"{s}_channels.csv")),
-                        pd.read_csv(folder / f"{s}_channels.csv"), s) for s in ("flexural", "torsional")]
-    return model, meas, manifest
+    return truth_paired(campaign_dir("joint", design="freight", fe_max_hz=DESIGN_FE_MAX_HZ["freight"],
+                                     fe_export_hz=1950.0))
 
 
 @pytest.mark.parametrize("wheel_kg", [273.6, 340.0])
