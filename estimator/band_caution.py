@@ -45,14 +45,12 @@ from typing import Sequence
 
 import numpy as np
 
-from estimator.contact_filter import contact_filter_response, contact_gain
+from estimator.contact_filter import MAX_GAIN_DB, contact_filter_response, contact_gain
 
 __all__ = ["CONTACT_CAUTION_DB", "BandCaution", "band_cautions"]
 
 #: a band whose contact-filter correction exceeds this [dB] depends on the contact patch's size
 CONTACT_CAUTION_DB = 3.0
-#: the correction's cap (:func:`estimator.contact_filter.contact_gain`'s default)
-MAX_GAIN_DB = 6.0
 
 
 @dataclass(frozen=True)
@@ -130,8 +128,8 @@ def _contact_part(lam_lo_mm: float, lam_hi_mm: float, semi_axis_m: float, contac
     notes = []
     correction_db = float(20 * np.log10(contact_gain(np.array([1 / lam_hi, 1 / lam_lo]), semi_axis_m,
                                                      MAX_GAIN_DB)).max())
-    capped = bool(contact_filter_response(1 / lam_lo, semi_axis_m) < 10 ** (-MAX_GAIN_DB / 20)
-                  or 2 * math.pi * semi_axis_m / lam_lo > 3.8)
+    # contact_gain returns exactly the cap where it stopped correcting
+    capped = correction_db >= MAX_GAIN_DB - 1e-9
     if correction_db > CONTACT_CAUTION_DB:
         notes.append(f"the contact-filter correction reaches +{correction_db:.1f} dB: the level depends on the "
                      f"contact patch (a = {1e3 * semi_axis_m:.2f} mm) as much as on the measurement")

@@ -24,7 +24,10 @@ import numpy as np
 from scipy import fft as sfft
 from scipy.special import j1
 
-__all__ = ["contact_filter_response", "contact_gain", "undo_contact_filter"]
+__all__ = ["MAX_GAIN_DB", "contact_filter_response", "contact_gain", "undo_contact_filter"]
+
+#: the correction's cap [dB]: beyond it the patch has wiped out what the wheel could tell
+MAX_GAIN_DB = 6.0
 
 
 def contact_filter_response(k_cycles_per_m, semi_axis_m: float) -> np.ndarray:
@@ -35,7 +38,7 @@ def contact_filter_response(k_cycles_per_m, semi_axis_m: float) -> np.ndarray:
     return h
 
 
-def contact_gain(k_cycles_per_m: np.ndarray, semi_axis_m: float, max_gain_db: float = 6.0) -> np.ndarray:
+def contact_gain(k_cycles_per_m: np.ndarray, semi_axis_m: float, max_gain_db: float = MAX_GAIN_DB) -> np.ndarray:
     """Correction gain ``1/H`` on an increasing wavenumber axis, capped (module docstring)."""
     k = np.asarray(k_cycles_per_m, float)
     h = contact_filter_response(k, semi_axis_m)
@@ -46,7 +49,8 @@ def contact_gain(k_cycles_per_m: np.ndarray, semi_axis_m: float, max_gain_db: fl
     return np.where(past | (ka > 3.8), 1 / floor, 1 / np.maximum(h, floor))
 
 
-def undo_contact_filter(profile: np.ndarray, dx: float, semi_axis_m: float, max_gain_db: float = 6.0) -> np.ndarray:
+def undo_contact_filter(profile: np.ndarray, dx: float, semi_axis_m: float,
+                        max_gain_db: float = MAX_GAIN_DB) -> np.ndarray:
     """Divide a profile (…, M; NaN = masked, kept) by the contact filter, gain capped (module docstring)."""
     p = np.asarray(profile, float)
     bad = ~np.isfinite(p)
