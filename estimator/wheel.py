@@ -259,28 +259,33 @@ def _synchronous_average_numpy(X: np.ndarray, R: int, min_weight: float) -> np.n
         return np.where(den > min_weight, num / den, np.nan)
 
 
-def _synchronous_average_loop(X, R, min_weight):
-    """:func:`_synchronous_average_numpy` as one pass along the revolutions with running sums (compiled):
+def _comb_loop(P, N, R, min_weight):
+    """Rail part and periodic part of :func:`comb` in one pass along the revolutions with running sums (compiled).
 
-    ``T(r) = Σ_{|m|≤R} (R+1−|m|) x[r+m]`` obeys ``T(r+1) = T(r) + A(r) − B(r)`` with
-    ``A(r) = Σ_{j=r+1}^{r+R+1} x[j]`` and ``B(r) = Σ_{j=r−R}^{r} x[j]`` — no cumulative sums of the whole
-    array and no temporaries the size of the profile.
+    ``P`` (rows, M) holds ``N`` samples per revolution, angle ``k`` of revolution ``r`` at ``r N + k`` (NaN past
+    ``M``). The triangular sum ``T(r) = Σ_{|m|≤R} (R+1−|m|) x[r+m]`` obeys ``T(r+1) = T(r) + A(r) − B(r)`` with
+    ``A(r) = Σ_{j=r+1}^{r+R+1} x[j]`` and ``B(r) = Σ_{j=r−R}^{r} x[j]``: no padded copy, no cumulative sums of
+    the whole array and no temporaries the size of the profile (the profile is the run's longest array).
+    Returns ``(rail, periodic)`` as :func:`comb` does.
     """
-    rows, n_rev, N = X.shape
-    out = np.empty((rows, n_rev, N))
+    rows, M = P.shape
+    n_rev = (M + N - 1) // N
+    rail = np.empty((rows, M))
+    per = np.empty((rows, M))
     T = np.zeros(N)
     A = np.zeros(N)
     B = np.zeros(N)
     Tw = np.zeros(N)
     Aw = np.zeros(N)
     Bw = np.zeros(N)
+    nan = np.nan
     for i in range(rows):
         for k in range(N):
             T[k] = A[k] = B[k] = Tw[k] = Aw[k] = Bw[k] = 0.0
         # r = 0: T over m = 0..R, A over 1..R+1, B over [0]
         for j in range(min(R + 2, n_rev)):
             for k in range(N):
-                x = X[i, j, k]
+                x = P[i, j * N + k] if j * N + k < M else nan
                 if x == x:  # finite (NaN != NaN)
                     if j <= R:
                         T[k] += (R + 1 - j) * x
@@ -293,40 +298,53 @@ def _synchronous_average_loop(X, R, min_weight):
                         Bw[k] += 1.0
         for r in range(n_rev):
             for k in range(N):
-                x = X[i, r, k]
+                q = r * N + k
+                x = P[i, q] if q < M else nan
                 ok = x == x
                 num = T[k] - (R + 1) * x if ok else T[k]
                 den = Tw[k] - (R + 1) if ok else Tw[k]
-                out[i, r, k] = num / den if den > min_weight else np.nan
+                if q < M:
+                    v = num / den if den > min_weight else nan
+                    per[i, q] = v
+                    rail[i, q] = x - v if v == v else x
                 T[k] += A[k] - B[k]
                 Tw[k] += Aw[k] - Bw[k]
             if r + 1 < n_rev:
                 for k in range(N):
-                    x1 = X[i, r + 1, k]
+                    q = (r + 1) * N + k
+                    x1 = P[i, q] if q < M else nan
                     if x1 == x1:
                         A[k] -= x1
                         Aw[k] -= 1.0
                         B[k] += x1
                         Bw[k] += 1.0
-                    if r + R + 2 < n_rev:
-                        x2 = X[i, r + R + 2, k]
+                    q = (r + R + 2) * N + k
+                    if r + R + 2 < n_rev and q < M:
+                        x2 = P[i, q]
                         if x2 == x2:
                             A[k] += x2
                             Aw[k] += 1.0
                     if r - R >= 0:
-                        x0 = X[i, r - R, k]
+                        x0 = P[i, (r - R) * N + k]
                         if x0 == x0:
                             B[k] -= x0
                             Bw[k] -= 1.0
-    return out
+    return rail, per
+
+
+def _comb_numpy(P, N, R, min_weight):
+    """:func:`_comb_loop` with numpy's cumulative sums (the fallback without numba)."""
+    X, m = _by_revolution(P, N)
+    per = _synchronous_average_numpy(X, R, min_weight).reshape(P.shape[0], -1)[:, :m]
+    return P - np.where(np.isfinite(per), per, 0.0), per
 
 
 try:  # one pass instead of eight cumulative sums over the profile (numba is a dependency of the virtual line too)
     from numba import njit
 
-    _synchronous_average = njit(cache=True, nogil=True)(_synchronous_average_loop)
+    _comb = njit(cache=True, nogil=True)(_comb_loop)
 except ImportError:  # pragma: no cover - pure numpy fallback
-    _synchronous_average = _synchronous_average_numpy
+    _comb = _comb_numpy
 
 
 def _by_revolution(x: np.ndarray, n_per_rev: int) -> tuple[np.ndarray, int]:
@@ -354,13 +372,9 @@ def comb(profile: np.ndarray, n_per_rev: int, revolutions: int) -> tuple[np.ndar
         ``rail = profile − periodic`` (NaN where ``profile`` is); ``periodic`` is
         the wheel's estimate at each sample (NaN where no neighbour is valid).
     """
-    p = np.atleast_2d(profile)
-    X, m = _by_revolution(p, n_per_rev)  # (n_sides, n_rev, N)
+    p = np.ascontiguousarray(np.atleast_2d(profile), dtype=float)
     R = int(revolutions)
-    per = _synchronous_average(np.ascontiguousarray(X, dtype=float), R, 0.05 * R * (R + 1))
-    per = per.reshape(p.shape[0], -1)[:, :m]
-    rail = p - np.where(np.isfinite(per), per, 0.0)
-    return rail, per
+    return _comb(p, int(n_per_rev), R, 0.05 * R * (R + 1))
 
 
 @dataclass(frozen=True, eq=False)

@@ -42,9 +42,11 @@ def test_comb_removes_the_periodic_part_and_keeps_the_rail():
     assert comb_response(np.array([1.0, 12.0, 0.5, 12.5]), 32) == pytest.approx([0, 0, 1.03, 1.03], abs=0.01)
 
 
-def test_compiled_synchronous_average_equals_the_direct_sum():
-    """The one-pass running-sum comb equals the triangular weighted sum written out term by term, gaps included."""
-    from estimator.wheel import _synchronous_average
+@pytest.mark.parametrize("kernel", ["_comb", "_comb_numpy"])
+def test_compiled_comb_equals_the_direct_sum(kernel):
+    """The one-pass running-sum comb (compiled, and its numpy fallback) equals the triangular weighted sum written
+    out term by term, gaps and a partial last revolution included."""
+    import estimator.wheel as wheel
 
     rng = np.random.default_rng(7)
     R, rows, n_rev, N = 3, 2, 23, 5
@@ -52,7 +54,10 @@ def test_compiled_synchronous_average_equals_the_direct_sum():
     X[:, 4:6, :] = np.nan
     X[1, :, 2] = np.where(rng.random(n_rev) < 0.4, np.nan, X[1, :, 2])
     X[0, :, 4] = np.nan  # an angle with no valid revolution at all
-    got = _synchronous_average(X, R, 0.05 * R * (R + 1))
+    X[:, -1, 3:] = np.nan  # past the profile's end: the last revolution is partial
+    M = n_rev * N - 2
+    P = np.ascontiguousarray(X.reshape(rows, -1)[:, :M])
+    rail, per = getattr(wheel, kernel)(P, N, R, 0.05 * R * (R + 1))
     want = np.full_like(X, np.nan)
     for i in range(rows):
         for r in range(n_rev):
@@ -65,8 +70,10 @@ def test_compiled_synchronous_average_equals_the_direct_sum():
                     den += R + 1 - abs(m)
                 if den > 0.05 * R * (R + 1):
                     want[i, r, k] = num / den
-    assert np.array_equal(np.isnan(got), np.isnan(want))
-    np.testing.assert_allclose(got[np.isfinite(got)], want[np.isfinite(want)], rtol=0, atol=1e-12)
+    want = want.reshape(rows, -1)[:, :M]
+    assert np.array_equal(np.isnan(per), np.isnan(want))
+    np.testing.assert_allclose(per[np.isfinite(per)], want[np.isfinite(want)], rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(rail, P - np.where(np.isfinite(want), per, 0.0))
 
 
 def test_circumference_and_polygon_order_from_a_wheel_on_random_rail():

@@ -31,6 +31,7 @@ module is written from the standard's rules instead.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -129,23 +130,20 @@ def roughness_spectrum(profile: np.ndarray, dx: float, *, segment_m: float = 2.0
     """
     p = np.asarray(profile, float)
     n = int(round(segment_m / dx))
-    bands = third_octave_bands(longest_m, shortest_m)
-    wl = np.array([nominal_wavelength(int(k)) for k in bands])
+    bands, wl, limit, win, win_energy, to_bands, ok_grid = _layout(n, float(dx), float(segment_m), float(longest_m),
+                                                                   float(shortest_m))
     levels = np.full(bands.size, np.nan)
     segs = segments_of(p, n)
     if segs.shape[0]:
         segs = detrend_rows(segs)
-        win = hann(n, sym=False)
         S = np.abs(sfft.rfft(segs * win, axis=1)) ** 2
-        dk = 1.0 / (n * dx)
         # one-sided lines that sum to the mean square: |X|² / (N Σw²) doubled except DC (and Nyquist)
-        e = S.mean(axis=0) / (n * np.sum(win**2))
+        e = S.mean(axis=0) / (n * win_energy)
         e[1:] *= 2.0
         if n % 2 == 0:
             e[-1] /= 2.0
-        k = np.arange(e.size) * dk
-        energy = band_energies(k[1:], e[1:], dk, bands)
-        ok = (wl <= segment_m / 4 * (1 + 1e-9)) & (10 ** (bands / 10) * 10 ** 0.05 < 0.5 / dx)
+        energy = e[1:] @ to_bands
+        ok = ok_grid.copy()
         if resolved_m is not None:
             lam_lo_edge = 1 / (10 ** (bands / 10) * 10 ** 0.05)  # shortest wavelength in the band
             lam_hi_edge = 1 / (10 ** (bands / 10) * 10 ** -0.05)
@@ -153,4 +151,23 @@ def roughness_spectrum(profile: np.ndarray, dx: float, *, segment_m: float = 2.0
         with np.errstate(divide="ignore"):
             levels = np.where(ok, 10 * np.log10(np.maximum(energy, 1e-300) / R0**2), np.nan)
     k_seg = segs.shape[0]
-    return RoughnessSpectrum(bands, wl, levels, iso3095_limit_db(wl), k_seg, (k_seg + 1) * n * dx / 2 if k_seg else 0.0)
+    return RoughnessSpectrum(bands, wl, levels, limit.copy(), k_seg, (k_seg + 1) * n * dx / 2 if k_seg else 0.0)
+
+
+@functools.lru_cache(maxsize=64)
+def _layout(n: int, dx: float, segment_m: float, longest_m: float, shortest_m: float):
+    """What every stretch of one grid shares (a run has tens of stretches per rail and model): bands, nominal
+    wavelengths, ISO 3095 limit, Hann window and its energy, the lines-to-bands matrix of Annex C and the bands
+    the segment length and the grid allow (7.5)."""
+    bands = third_octave_bands(longest_m, shortest_m)
+    wl = np.array([nominal_wavelength(int(k)) for k in bands])
+    win = hann(n, sym=False)
+    dk = 1.0 / (n * dx)
+    k = np.arange(n // 2 + 1)[1:] * dk
+    to_bands = band_energies(k, np.eye(k.size), dk, bands)
+    ok = (wl <= segment_m / 4 * (1 + 1e-9)) & (10 ** (bands / 10) * 10 ** 0.05 < 0.5 / dx)
+    for a in (bands, wl, win, to_bands, ok):
+        a.flags.writeable = False
+    limit = iso3095_limit_db(wl)
+    limit.flags.writeable = False
+    return bands, wl, limit, win, float(np.sum(win**2)), to_bands, ok
