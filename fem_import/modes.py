@@ -158,6 +158,25 @@ class FEModes:
     def has_rotations(self) -> bool:
         return self.shapes.shape[2] == 6
 
+    @functools.cached_property
+    def rotation_free(self) -> np.ndarray:
+        """Nodes without rotations (bool per node): every node of a 3-DOF export, and in a 6-DOF export the nodes
+        whose rotations are zero in every mode — a solid element's node, which carries translations only and
+        which Nastran and most UFF writers still export with R1–R3 = 0. A rigid link from such a node would
+        silently drop the rotation's share of a point's motion.
+
+        Zero is judged against the export's largest translation over the model's size (``1e-12`` of it): a
+        rotation that small moves no point of the model by a measurable amount.
+        """
+        n = self.shapes.shape[1]
+        if not self.has_rotations:
+            return np.ones(n, bool)
+        rot = np.abs(self.shapes[:, :, 3:]).max(axis=(0, 2)) if self.shapes.shape[0] else np.zeros(n)
+        trans = float(np.abs(self.shapes[:, :, :3]).max()) if self.shapes.size else 0.0
+        xyz = self.xyz[np.all(np.isfinite(self.xyz), axis=1)]
+        size = float(np.ptp(xyz, axis=0).max()) if xyz.shape[0] > 1 else 0.0
+        return rot <= 1e-12 * trans / (size if size > 0 else 1.0)
+
     def in_si_units(self, system: str) -> "FEModes":
         """The modes of a file written in the unit ``system`` (a key of :data:`UNIT_SYSTEMS`), in SI.
 
@@ -304,8 +323,9 @@ class FEModes:
         translation ``u`` and rotation ``theta``) measuring along the unit
         vector ``d``, the modal displacement is
         ``d . (u + theta x (p - x_n))`` (small rotations of a rigid link).
-        With 3-DOF shapes (no rotations) it is ``d . u``, accepted only when
-        the point lies within ``tolerance`` of its node.  These are the shape
+        With 3-DOF shapes (no rotations), or a node whose rotations are zero
+        in every mode (:attr:`rotation_free`), it is ``d . u``, accepted only
+        when the point lies within ``tolerance`` of its node.  These are the shape
         coefficients of the modal superposition ``x = [Phi] q`` (thesis
         eq. 2.24) at the sensor and force locations.
 
@@ -345,8 +365,8 @@ class FEModes:
             Positions given (or a nearest node asked) but the model has no
             coordinates.
         PointToleranceError
-            A 3-DOF model and a point farther than ``tolerance`` from its
-            node, or no node within ``tolerance`` (names the point and
+            A 3-DOF model (or a node without rotations) and a point farther
+            than ``tolerance`` from its node, or no node within ``tolerance`` (names the point and
             distance); a point farther from its node than ``max_offset`` (a
             wrong node or unit, named "looks like mm" when a unit factor
             explains it).
@@ -416,6 +436,16 @@ class FEModes:
                     check_point_offsets(self, [self.node_ids[rows[k]]], pos[k:k + 1], [names[k]], limit=limit)
         u = self.shapes[:, rows, :3]
         if self.has_rotations:
+            dist = np.linalg.norm(offset, axis=1)
+            far = self.rotation_free[rows] & (dist > tol)
+            if far.any():
+                k = int(np.argmax(far))
+                raise PointToleranceError(
+                    f"{names[k]}: node {int(self.node_ids[rows[k]])} carries no rotations (they are zero in every "
+                    f"mode of {self._where()}: a solid element's node, exported with 6 DOF) and the point lies "
+                    f"{dist[k]:.4g} m from it, more than the tolerance {tol:g} m, so the rigid link that would carry "
+                    f"the point has nothing to turn with; attach it to a node within {tol:g} m (a surface node next "
+                    f"to the sensor) or to a beam or RBE node whose rotations the export holds")
             disp = u + np.cross(self.shapes[:, rows, 3:], offset[None, :, :])
         else:
             dist = np.linalg.norm(offset, axis=1)

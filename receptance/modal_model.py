@@ -387,6 +387,9 @@ class ModalModel:
             if not self.fe.has_rotations:
                 raise DofError(f"DOF {dof.label!r}: the FE shapes have no rotations ({self.fe.source})")
             node = pt.fe_node if pt.fe_node is not None else self.fe.nearest_node(pt.xyz, name=pt.name)
+            if self.fe.rotation_free[self.fe.index(node)]:
+                raise DofError(f"DOF {dof.label!r}: node {node} carries no rotations (they are zero in every mode "
+                               f"of {self.fe.source}: a solid element's node, exported with 6 DOF)")
             out[k] = self.fe.shapes[:, self.fe.index(node), 3:] @ np.asarray(dof.direction)
         if trans:
             pts = [dofs[k].point for k in trans]

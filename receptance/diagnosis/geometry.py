@@ -183,14 +183,23 @@ def _point_xyz(model, name: str) -> np.ndarray | None:
     return None
 
 
-def needs_rotations(model, effect: str, why: str) -> None:
+def needs_rotations(model, effect: str, why: str, nodes=None) -> None:
     """Refuse an effect that acts on nodal rotations when the export has none (3 DOF per node, as a solid-element
-    model is exported): named, with what would make it apply, instead of a failed fit."""
+    model is exported) or, with ``nodes``, when those nodes have none (zero in every mode: solid elements' nodes in
+    a 6-DOF export, :attr:`fem_import.FEModes.rotation_free`): named, with what would make it apply, instead of a
+    fit whose springs act on nothing."""
+    fix = ("export the rotations too (6 DOF per node), with the axle's centre line as beam or RBE2/RBE3 nodes whose "
+           "rotations the export holds")
     if not model.fe.has_rotations:
         raise EffectNotApplicable(effect, f"the FE shapes have no rotations (3 DOF per node, as a solid-element export "
-                                          f"writes them): {why}",
-                                  "export the rotations too (6 DOF per node), with the axle's centre line as beam "
-                                  "or RBE2/RBE3 nodes whose rotations the export holds")
+                                          f"writes them): {why}", fix)
+    if nodes is None:
+        return
+    free = [int(n) for n in nodes if model.fe.rotation_free[model.fe.index(int(n))]]
+    if free:
+        which = f"node {free[0]} carries" if len(free) == 1 else f"nodes {', '.join(map(str, free))} carry"
+        raise EffectNotApplicable(effect, f"{which} no rotations (zero in every mode of the export, as a solid "
+                                          f"element's node): {why}", fix)
 
 
 def wheelset_geometry(model, description: WheelsetDescription | None = None, *, effect: str = "effect"
@@ -420,6 +429,9 @@ def _axlebox_case(model, geometry: WheelsetGeometry, side: str, effect: str = "a
         raise EffectNotApplicable(effect, f"no axle node within {JOURNAL_FRACTION * R:.3g} m of the axlebox {side} "
                                           f"centre y = {centre[1]:.4g} m (nearest {journal}, {dist:.3g} m away)",
                                   "export the journal's centre-line node")
+    # without the journal's rotation neither the rigid link to an axlebox node nor a rocking spring can be judged
+    needs_rotations(model, effect, f"the axlebox {side} moves with its journal's rotation (a rigid link) and the "
+                                   f"bearing's rocking springs act on it", nodes=[journal])
     line = set(geometry.axle_nodes.tolist())
     own = None
     p = model.points.get(f"axlebox_{side}")
@@ -614,6 +626,9 @@ def wheel_attachment(model, geometry: WheelsetGeometry, side: str, *, effect: st
                                           f"plane y = {y_plane:.4g} m (nearest {seat}, {dist:.3g} m away)",
                                   "export the wheel seat's centre-line node, or state wheel.hub_plane_"
                                   f"{side}_m in the description")
+    needs_rotations(model, effect, f"wheel {side}'s seat turns with the axle (its mass layout rides on the seat's "
+                                   f"rotation) and the joint's rocking and torsional springs act on the seat's and the "
+                                   f"hub's rotations", nodes=[seat])
     seat_xyz = fe.xyz[fe.index(seat)]
     # parts tied to the seat at its place (a hub centre node) move with the wheel; a rim body node at the same
     # place on web springs is no tie
