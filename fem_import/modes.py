@@ -434,30 +434,24 @@ class FEModes:
 
                     k = int(np.argmax(far))
                     check_point_offsets(self, [self.node_ids[rows[k]]], pos[k:k + 1], [names[k]], limit=limit)
-        u = self.shapes[:, rows, :3]
+        # a node without rotations (a 3-DOF export, or a solid element's node in a 6-DOF one) carries a point only
+        # where the rigid link's rotation share is negligible: within the tolerance
+        dist = np.linalg.norm(offset, axis=1)
+        far = self.rotation_free[rows] & (dist > tol)
+        if far.any():
+            k = int(np.argmax(far))
+            node = int(self.node_ids[rows[k]])
+            why = (f"node {node} carries no rotations (they are zero in every mode of {self._where()}: a solid "
+                   f"element's node, exported with 6 DOF)" if self.has_rotations else
+                   f"the shapes have no rotations (3 DOF per node) at its node {node}")
+            raise PointToleranceError(
+                f"{names[k]}: {why} and the point lies {dist[k]:.4g} m from it, more than the tolerance {tol:g} m; "
+                f"attach it to a node within {tol:g} m (a surface node next to the sensor, its fe_node), export the "
+                f"shapes with rotations at a beam or RBE node, or, in Python, pass a larger tolerance= to "
+                f"FEModes.at_points")
+        disp = self.shapes[:, rows, :3]
         if self.has_rotations:
-            dist = np.linalg.norm(offset, axis=1)
-            far = self.rotation_free[rows] & (dist > tol)
-            if far.any():
-                k = int(np.argmax(far))
-                raise PointToleranceError(
-                    f"{names[k]}: node {int(self.node_ids[rows[k]])} carries no rotations (they are zero in every "
-                    f"mode of {self._where()}: a solid element's node, exported with 6 DOF) and the point lies "
-                    f"{dist[k]:.4g} m from it, more than the tolerance {tol:g} m, so the rigid link that would carry "
-                    f"the point has nothing to turn with; attach it to a node within {tol:g} m (a surface node next "
-                    f"to the sensor) or to a beam or RBE node whose rotations the export holds")
-            disp = u + np.cross(self.shapes[:, rows, 3:], offset[None, :, :])
-        else:
-            dist = np.linalg.norm(offset, axis=1)
-            far = dist > tol
-            if far.any():
-                k = int(np.argmax(far))
-                raise PointToleranceError(
-                    f"{names[k]}: the shapes have no rotations (3 DOF per node) and the point lies {dist[k]:.4g} m "
-                    f"from its node {int(self.node_ids[rows[k]])}, more than the tolerance {tol:g} m; attach it "
-                    f"to a closer node (its fe_node), export the shapes with rotations (6 DOF per node), or, in "
-                    f"Python, pass a larger tolerance= to FEModes.at_points")
-            disp = u
+            disp = disp + np.cross(self.shapes[:, rows, 3:], offset[None, :, :])
         return np.einsum("mpk,pk->pm", disp, d)
 
 

@@ -62,12 +62,14 @@ element on an undefined grid is refused, unless the deck has INCLUDE
 statements (not followed: a warning names them), whose grids may be the
 missing ones: those elements are dropped with a warning.
 
-Other cards (properties, materials, loads, parameters, coordinate systems,
+Other cards (properties, materials, loads, parameters,
 scalar elements...) are skipped with one INFO log per card type and count.
 Real numbers may use Nastran's exponent shorthand (``7.85-3`` = 7.85e-3,
-``1.+4``) and Fortran ``D`` exponents. Only the basic coordinate system is
-supported: a GRID with a non-zero ``CP`` (position system) or ``CD``
-(displacement system: the punch's eigenvectors of that grid would be in it)
+``1.+4``) and Fortran ``D`` exponents. Coordinate systems (CORD2R/C/S, CORD1R/C/S,
+:mod:`fem_import.nastran_coords`) place grids given in a ``CP`` system and
+give each grid with a ``CD`` system the rotation of its displacement
+components to basic (the punch's eigenvectors of that grid are in it;
+:func:`fem_import.merge_geometry` rotates them). A system left undefined
 is refused, naming the grid and line. Lines before ``BEGIN BULK`` (executive
 and case control) are skipped when the file has that line; reading stops at
 ``ENDDATA``. Units are taken as SI, like the punch file's: a bulk data file
@@ -89,6 +91,7 @@ import numpy as np
 
 from .errors import FEReadError
 from .modes import Element, FEModes
+from .nastran_coords import resolve
 from .registry import Geometry, register_format
 
 __all__ = ["read_bulk_geometry", "sniff_bulk", "parse_nastran_real", "BULK_SUFFIXES", "CARD_DESCRIPTORS"]
@@ -496,7 +499,8 @@ def _element(path: str, name: str, fields: list[str], line: int) -> tuple[int, i
     return card.eid, desc, tuple(nodes), pid
 
 
-def _grid(path: str, fields: list[str], line: int) -> tuple[int, tuple[float, float, float]]:
+def _grid(path: str, fields: list[str], line: int) -> tuple[int, int, tuple[float, float, float], int]:
+    """``(id, CP, (X1, X2, X3) in CP, CD)`` of a GRID entry."""
     f = fields + [""] * (6 - len(fields))
     try:
         gid = int(f[0].strip())
@@ -504,11 +508,17 @@ def _grid(path: str, fields: list[str], line: int) -> tuple[int, tuple[float, fl
         raise FEReadError(path, f"GRID id {f[0].strip()!r} is not an integer", line=line) from None
     if gid <= 0 or gid >= 2**31:
         raise FEReadError(path, f"GRID id {gid} outside 1 .. 2^31-1", line=line)
+    cs = []
     for what, text in (("CP", f[1]), ("CD", f[5])):
         t = text.strip()
-        if t and t != "0":
-            raise FEReadError(path, f"GRID {gid} uses coordinate system {what} = {t}; only the basic system "
-                              f"(blank or 0) is supported — export the grids in the basic system", line=line)
+        try:
+            cs.append(int(t) if t else 0)
+        except ValueError:
+            raise FEReadError(path, f"GRID {gid}: coordinate system {what} = {t!r} is not an integer",
+                              line=line) from None
+        if cs[-1] < 0:
+            raise FEReadError(path, f"GRID {gid}: {what} = {cs[-1]} (a fluid or scalar grid has no place in a "
+                                    f"structural wheelset model)", line=line)
     try:
         x = tuple(parse_nastran_real(v) for v in f[2:5])
     except ValueError:
@@ -516,7 +526,43 @@ def _grid(path: str, fields: list[str], line: int) -> tuple[int, tuple[float, fl
         raise FEReadError(path, f"GRID {gid}: coordinate {bad!r} is not a number", line=line) from None
     if not all(np.isfinite(x)):
         raise FEReadError(path, f"GRID {gid}: non-finite coordinate {list(x)}", line=line)
-    return gid, x
+    return gid, cs[0], x, cs[1]
+
+
+def _cord2(path: str, name: str, fields: list[str], line: int) -> tuple[int, tuple]:
+    """``(CID, (kind, RID, A, B, C, line))`` of a CORD2R/C/S entry."""
+    card = _Card(path, name, fields, line)
+    cid = card.integer(0, "coordinate system id")
+    rid = card.integer(1, "reference system RID", required=False) or 0
+    if cid <= 0:
+        raise FEReadError(path, f"{name}: coordinate system id must be positive, got {cid}", line=line)
+    vals = []
+    for k in range(2, 11):
+        t = card.text(k)
+        try:
+            vals.append(parse_nastran_real(t))
+        except ValueError:
+            raise FEReadError(path, f"{name} {cid}: {_field(k)} {t!r} is not a number", line=line) from None
+    if len(fields) < 11 or not any(card.text(k) for k in range(8, 11)):
+        raise FEReadError(path, f"{name} {cid}: the point C (C1, C2, C3) of its continuation line is missing",
+                          line=line)
+    v = np.asarray(vals, float)
+    return cid, (name[-1], rid, v[0:3], v[3:6], v[6:9], line)
+
+
+def _cord1(path: str, name: str, fields: list[str], line: int) -> list[tuple[int, tuple]]:
+    """``[(CID, (kind, (G1, G2, G3), line)), ...]`` of a CORD1R/C/S entry (one or two systems)."""
+    card = _Card(path, name, fields, line)
+    out = []
+    for k0 in (0, 4):
+        cid = card.integer(k0, "coordinate system id", required=(k0 == 0))
+        if cid is None:
+            continue
+        gs = tuple(card.integer(k0 + j, f"grid G{j}") for j in (1, 2, 3))
+        if len(set(gs)) < 3:
+            raise FEReadError(path, f"{name} {cid}: its three grids must be distinct, got {list(gs)}", line=line)
+        out.append((cid, (name[-1], gs, line)))
+    return out
 
 
 def read_bulk_geometry(path: str) -> Geometry:
@@ -525,16 +571,17 @@ def read_bulk_geometry(path: str) -> Geometry:
     Returns
     -------
     Geometry
-        Node ids in file order, coordinates [m] (SI assumed), and the
+        Node ids in file order, basic coordinates [m] (SI assumed), the
         elements of the connectivity cards (module docstring) sorted by
-        element id, with their UFF 2412 FE descriptors.
+        element id, with their UFF 2412 FE descriptors, and the grids'
+        displacement frames when some grid has a ``CD`` system.
 
     Raises
     ------
     FEReadError
         No GRID entry, a field that is not a number, a repeated grid or
-        element id, a grid in a non-basic coordinate system (CP or CD not
-        0), a large-field GRID* without its continuation, an element that
+        element id, a coordinate system undefined, defined twice or degenerate
+        (names the grid or system), a large-field GRID* without its continuation, an element that
         lists a grid twice or uses a grid no GRID defines; names the line.
     """
     with open(path, encoding="latin-1") as fh:
@@ -544,7 +591,10 @@ def read_bulk_geometry(path: str) -> Geometry:
         begin = next((k for k, ln in enumerate(lines) if ln.strip().upper() == "CEND"), -1)
     start = begin + 1
     ids: list[int] = []
-    xyz: list[tuple[float, float, float]] = []
+    grids: dict[int, tuple] = {}  # id -> (CP, coordinates in CP, line)
+    cds: dict[int, int] = {}  # id -> CD, where not basic
+    cord2: dict[int, tuple] = {}
+    cord1: dict[int, tuple] = {}
     seen: dict[int, int] = {}
     raw_elements: list[tuple[int, int, tuple[int, ...], int, str, int]] = []
     includes: list[str] = []
@@ -564,13 +614,25 @@ def read_bulk_geometry(path: str) -> Geometry:
             if large and count < 2:
                 raise FEReadError(path, "large-field GRID* entry without its '*' continuation line (X3, CD)",
                                   line=line_no)
-            gid, x = _grid(path, fields, line_no)
+            gid, cp, x, cd = _grid(path, fields, line_no)
             if gid in seen:
                 raise FEReadError(path, f"GRID {gid} is defined twice (lines {seen[gid]} and {line_no})",
                                   line=line_no)
             seen[gid] = line_no
             ids.append(gid)
-            xyz.append(x)
+            grids[gid] = (cp, x, line_no)
+            if cd:
+                cds[gid] = cd
+            continue
+        if name in ("CORD2R", "CORD2C", "CORD2S", "CORD1R", "CORD1C", "CORD1S"):
+            for cid, spec in ([_cord2(path, name, fields, line_no)] if name.startswith("CORD2")
+                              else _cord1(path, name, fields, line_no)):
+                table = cord2 if name.startswith("CORD2") else cord1
+                if cid in cord2 or cid in cord1:
+                    first = (cord2.get(cid) or cord1.get(cid))[-1]
+                    raise FEReadError(path, f"coordinate system {cid} is defined twice (lines {first} and {line_no})",
+                                      line=line_no)
+                table[cid] = spec
             continue
         if name in _BUILDERS:
             eid, desc, nodes, pid = _element(path, name, fields, line_no)
@@ -589,9 +651,28 @@ def read_bulk_geometry(path: str) -> Geometry:
     if not ids:
         raise FEReadError(path, "no GRID entry: the file carries no node coordinates")
     elements = _check_elements(path, raw_elements, seen, bool(includes))
+    systems, positions = resolve(path, cord2, cord1, grids)
+    xyz = np.array([positions[g] for g in ids], float)
+    frames = None
+    if cds:
+        undefined = sorted(g for g, cd in cds.items() if cd not in systems)
+        if undefined:
+            g = undefined[0]
+            raise FEReadError(path, f"GRID {g}: its displacement system CD = {cds[g]} is defined by no CORD entry",
+                              line=seen[g])
+        frames = np.broadcast_to(np.eye(3), (len(ids), 3, 3)).copy()
+        for k, g in enumerate(ids):
+            if g in cds:
+                frames[k] = systems[cds[g]].frame_at(xyz[k])
+        log.info("%s: %d grid(s) give their displacements in local systems (CD %s): rotated to basic when the "
+                 "modes are merged", path, len(cds), sorted(set(cds.values()))[:10])
+    if len(systems) > 1:
+        n_cp = sum(1 for cp, _, _ in grids.values() if cp)
+        log.info("%s: %d coordinate system(s) resolved; %d grid position(s) converted to basic", path,
+                 len(systems) - 1, n_cp)
     log.info("%s: %d grids and %d elements read", path, len(ids), len(elements))
-    return Geometry(np.asarray(ids, np.int64), np.asarray(xyz, float), tuple(elements), str(path),
-                    "SI (m, kg, s) assumed (a bulk data file does not state units)")
+    return Geometry(np.asarray(ids, np.int64), xyz, tuple(elements), str(path),
+                    "SI (m, kg, s) assumed (a bulk data file does not state units)", frames)
 
 
 def _check_elements(path, raw, grids: dict[int, int], has_includes: bool) -> list[Element]:

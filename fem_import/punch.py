@@ -22,7 +22,9 @@ are skipped with a logged note.  The eigenvalue is ``lambda = omega**2``
 come out with tiny negative eigenvalues, hence 0 Hz).  Other result blocks
 (``$DISPLACEMENTS``, ``$SPCF``, element output...) are skipped; complex
 output is refused.  Nastran punches eigenvectors in the displacement
-coordinate system of each grid (CD); it is assumed to be the basic system.
+coordinate system of each grid (CD); the bulk deck merged as geometry says
+which (:mod:`fem_import.nastran_coords`), and :func:`fem_import.merge_geometry`
+rotates them to the basic system.
 
 A punch file has no geometry: node coordinates are NaN unless
 ``fem_import.read(path, geometry=...)`` merges them from a UFF file or an

@@ -55,6 +55,9 @@ class Geometry:
     source : str
         File the geometry was read from.
     units : str
+    displacement_frames : ndarray (n, 3, 3), optional
+        Per node, the unit vectors (columns, in the global system) of the directions its mode-shape components are
+        given in (a Nastran grid's ``CD`` system); None: every node's are the global axes.
     """
 
     node_ids: np.ndarray
@@ -62,6 +65,7 @@ class Geometry:
     elements: tuple[Element, ...]
     source: str = ""
     units: str = "SI (m, kg, s)"
+    displacement_frames: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -317,7 +321,9 @@ def merge_geometry(modes: FEModes, geometry) -> FEModes:
     FEModes
         A new object: the nodes of ``modes`` in the order of the geometry's
         node list, their coordinates, and the geometry's elements whose nodes
-        all have shapes (others are dropped with a logged warning).
+        all have shapes (others are dropped with a logged warning); the shapes
+        of nodes with a displacement frame (a Nastran grid's ``CD`` system)
+        rotated to the global axes.
 
     Raises
     ------
@@ -337,6 +343,25 @@ def merge_geometry(modes: FEModes, geometry) -> FEModes:
     xyz = gxyz[keep]
     row = {n: k for k, n in enumerate(modes.node_ids.tolist())}
     order = np.array([row[n] for n in ids.tolist()], np.int64)
+    shapes = modes.shapes[:, order, :]
+    steps = []
+    local = np.zeros(0, np.int64)
+    if geo.displacement_frames is not None:
+        frames = np.asarray(geo.displacement_frames, float)[keep]
+        local = np.flatnonzero(np.abs(frames - np.eye(3)).max(axis=(1, 2)) > 0)
+        if local.size and modes.format != "nastran-punch":
+            # a CD system says how Nastran punches a grid's components; another file states its own directions
+            log.warning("%s: %d node(s) of the geometry %s have displacement coordinate systems (CD); the modes were "
+                        "read from a %s file, whose components are taken as global, not rotated", modes.source,
+                        local.size, geo.source, modes.format or "non-punch")
+            local = local[:0]
+        if local.size:
+            # components along the node's own directions -> global: u = R u_local, for translations and rotations
+            shapes = shapes.copy()
+            for j in range(0, shapes.shape[2], 3):
+                shapes[:, local, j:j + 3] = np.einsum("nab,mnb->mna", frames[local], shapes[:, local, j:j + 3])
+            steps.append(f"mode shapes of {local.size} node(s) rotated from their displacement coordinate systems "
+                         f"to the global one ({geo.source or 'geometry'})")
     elements = [e for e in geo.elements if all(n in have for n in e.nodes)]
     dropped = len(geo.elements) - len(elements)
     if dropped:
@@ -344,7 +369,7 @@ def merge_geometry(modes: FEModes, geometry) -> FEModes:
                     modes.source, dropped, geo.source)
     step = f"geometry (coordinates, {len(elements)} elements) merged from {geo.source or 'memory'}"
     return dataclasses.replace(modes, node_ids=ids, xyz=xyz, elements=tuple(elements),
-                               shapes=modes.shapes[:, order, :], history=modes.history + (step,))
+                               shapes=shapes, history=modes.history + (step,) + tuple(steps))
 
 
 def read(path, format: str | None = None, *, geometry=None, **kwargs) -> FEModes:

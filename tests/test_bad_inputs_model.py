@@ -441,7 +441,8 @@ def test_case16_bulk_grid_formats_and_refusals(tmp_path):
     assert parse_nastran_real("1.+4") == 1e4 and parse_nastran_real("-2.5D+2") == -250.0
     assert parse_nastran_real(" ") == 0.0
     (tmp_path / "cp.bdf").write_text("BEGIN BULK\nGRID    1       5       0.0     1.0     2.0\nENDDATA\n")
-    with pytest.raises(fem_import.FEReadError, match=r"cp\.bdf, line 2: GRID 1 uses coordinate system CP = 5"):
+    with pytest.raises(fem_import.FEReadError, match=r"cp\.bdf, line 2: GRID 1 is given in coordinate system CP = 5, "
+                                                 r"which no CORD entry defines"):
         fem_import.read_geometry(tmp_path / "cp.bdf")
     (tmp_path / "bad.bdf").write_text("BEGIN BULK\nGRID,7,,0.0,abc,1.0\nENDDATA\n")
     with pytest.raises(fem_import.FEReadError, match=r"GRID 7: coordinate 'abc' is not a number"):

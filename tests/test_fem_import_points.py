@@ -101,7 +101,7 @@ def test_three_dof_shapes_need_points_within_tolerance():
     fe = _link_model(3)
     got = fe.at_points([7], [[0.01, 0.0, 0.02]], [[0, 0, 1]])
     assert got[0, 0] == 0.5  # the translation of the node, no rotation arm
-    with pytest.raises(PointToleranceError, match=r"sensor A: .*no rotations.*0\.25 m from its node 7.*0\.05 m"):
+    with pytest.raises(PointToleranceError, match=r"sensor A: .*no rotations.* node 7 and the point lies 0\.25 m from it.*0\.05 m"):
         fe.at_points([7], [[0.25, 0, 0.0]], [[0, 1, 0]], names=["sensor A"])
     assert fe.at_points([7], [[0.25, 0, 0.0]], [[1, 0, 0]], tolerance=0.3)[0, 1] == 1.0
 
