@@ -543,8 +543,8 @@ def _cord2(path: str, name: str, fields: list[str], line: int) -> tuple[int, tup
             vals.append(parse_nastran_real(t))
         except ValueError:
             raise FEReadError(path, f"{name} {cid}: {_field(k)} {t!r} is not a number", line=line) from None
-    if len(fields) < 11 or not any(card.text(k) for k in range(8, 11)):
-        raise FEReadError(path, f"{name} {cid}: the point C (C1, C2, C3) of its continuation line is missing",
+    if len(fields) <= 8:  # blank C fields are zeros, as Nastran reads them; a missing continuation is an error
+        raise FEReadError(path, f"{name} {cid}: the continuation line with the point C (C1, C2, C3) is missing",
                           line=line)
     v = np.asarray(vals, float)
     return cid, (name[-1], rid, v[0:3], v[3:6], v[6:9], line)

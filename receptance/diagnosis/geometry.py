@@ -429,9 +429,11 @@ def _axlebox_case(model, geometry: WheelsetGeometry, side: str, effect: str = "a
         raise EffectNotApplicable(effect, f"no axle node within {JOURNAL_FRACTION * R:.3g} m of the axlebox {side} "
                                           f"centre y = {centre[1]:.4g} m (nearest {journal}, {dist:.3g} m away)",
                                   "export the journal's centre-line node")
-    # without the journal's rotation neither the rigid link to an axlebox node nor a rocking spring can be judged
-    needs_rotations(model, effect, f"the axlebox {side} moves with its journal's rotation (a rigid link) and the "
-                                   f"bearing's rocking springs act on it", nodes=[journal])
+    if fe.has_rotations:  # (a 3-DOF export is judged on translations; the bearing refuses it on its own)
+        # a journal without rotations in a 6-DOF export: neither the rigid link to an axlebox node nor a rocking
+        # spring can be judged
+        needs_rotations(model, effect, f"the axlebox {side} moves with its journal's rotation (a rigid link) and the "
+                                       f"bearing's rocking springs act on it", nodes=[journal])
     line = set(geometry.axle_nodes.tolist())
     own = None
     p = model.points.get(f"axlebox_{side}")
