@@ -183,6 +183,10 @@ class ModalModel:
         if not self.fe.has_rotations:
             log.info("%s: FE shapes without rotations; off-node points and rotational DOFs are unavailable",
                      self.fe.source or "model")
+        elif self.fe.rotation_free.any():
+            log.info("%s: %d of %d FE nodes carry no rotations (zero in every mode: solid elements' nodes); a point "
+                     "takes such a node's translation only within the tolerance of it", self.fe.source or "model",
+                     int(self.fe.rotation_free.sum()), self.fe.rotation_free.size)
         if self.max_hz is not None and not (np.isfinite(self.max_hz) and self.max_hz > 0):
             raise ModelError(f"max_hz must be a positive frequency in Hz or None, got {self.max_hz!r}")
         for mod in self.modifications:
