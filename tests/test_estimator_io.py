@@ -33,9 +33,13 @@ HEADER = {"run_id": "r7", "date": "2026-02-03", "direction": "forward", "train":
 
 def _write(folder, stem, ch, fmt):
     """The channels as a run file of format ``fmt`` in ``folder``."""
-    p = folder / f"{stem}.{dict(mdf4='mf4', parquet='parquet', csv='csv')[fmt]}"
+    p = folder / f"{stem}.{dict(mdf4='mf4', parquet='parquet', csv='csv')[fmt.split('-')[0]]}"
     if fmt == "mdf4":
         write_mdf4(p, ch, HEADER)
+    elif fmt == "csv-wide":
+        from estimator.io.wide import write_wide_csv
+
+        write_wide_csv({k: RawChannel(k, *v) for k, v in ch.items()}, HEADER, p)
     else:
         write_run_table({k: RawChannel(k, *v) for k, v in ch.items()}, HEADER, p, fmt)
     return p
@@ -73,8 +77,8 @@ def test_sensor_table_errors_name_row_column_and_value(tmp_path, edit, message):
         read_sensors(p)
 
 
-@pytest.mark.parametrize("fmt", ["mdf4", "parquet", "csv"])
-def test_the_three_formats_give_the_same_run(tmp_path, table, fmt):
+@pytest.mark.parametrize("fmt", ["mdf4", "parquet", "csv", "csv-wide"])
+def test_the_formats_give_the_same_run(tmp_path, table, fmt):
     ch = _channels()
     run = read_run(_write(tmp_path, "run", ch, fmt), table)
     assert run.format == fmt
@@ -581,3 +585,47 @@ def test_a_header_that_cannot_be_read_or_gives_a_key_twice_and_rows_without_a_ch
     p.write_text("\n".join(lines) + "\n")
     with pytest.raises(RunFileError, match=r"blank.csv: 2 data row\(s\) have no channel name \(row\(s\) 6, 7,"):
         read_run(p, table)
+
+
+def test_a_wide_csv_as_daq_software_writes_it(tmp_path):
+    """Semicolons and decimal commas, time in ms, units in brackets or parentheses; an empty cell is no sample of
+    that channel, a ``NaN`` cell a missing sample; anything else is refused naming its column and row."""
+    from estimator.io.registry import read_raw
+
+    p = tmp_path / "daq.csv"
+    p.write_text("# run_id = w1\n# direction = forward\n"
+                 "Time [ms];ACC_W1L_Z (g);SPEED [km/h];BALISE\n"
+                 "0;0,5;36,0;\n1;NaN;;\n2;-0,25;;110,5\n3;0,125;37,5;\n", encoding="utf-8")
+    raw, fmt = read_raw(p)
+    assert fmt == "csv-wide" and raw.header == {"run_id": "w1", "direction": "forward"}
+    acc, v, bal = raw.channels["ACC_W1L_Z"], raw.channels["SPEED"], raw.channels["BALISE"]
+    np.testing.assert_array_equal(acc.t, [0.0, 0.001, 0.002, 0.003])
+    assert acc.unit == "g" and np.isnan(acc.values[1]) and acc.values[[0, 2, 3]].tolist() == [0.5, -0.25, 0.125]
+    assert v.unit == "km/h" and v.t.tolist() == [0.0, 0.003] and v.values.tolist() == [36.0, 37.5]
+    assert bal.unit == "" and bal.t.tolist() == [0.002] and bal.values.tolist() == [110.5]
+    bad = tmp_path / "bad.csv"
+    bad.write_text("time,ACC_W1L_Z [g]\n0.0,0.1\n0.001,abc\n")
+    with pytest.raises(RunFileError, match=r"column 'ACC_W1L_Z \[g\]', data row 2 .*'abc' is not a number"):
+        read_raw(bad)
+    bad.write_text("time [h],ACC_W1L_Z [g]\n0.0,0.1\n")
+    with pytest.raises(RunFileError, match=r"time column 'time \[h\]': unit 'h' is not one of"):
+        read_raw(bad)
+
+
+def test_a_run_estimated_from_a_wide_csv_equals_its_mdf4(tmp_path):
+    """The synthetic run written as MDF 4 and converted to a wide CSV (every channel at its own rate, 17 digits)
+    gives the same estimate, to the bit."""
+    from estimator import EstimatorConfig, estimate_run, prepare
+    from estimator.io.registry import read_raw
+    from estimator.io.wide import write_wide_csv
+    from test_estimator_synthetic import control_model, make_run, sensor_table
+
+    sr = make_run(tmp_path, duration_s=30.0)
+    raw, _ = read_raw(sr.path)
+    wide = write_wide_csv(raw.channels, raw.header, tmp_path / "run_wide.csv")
+    fm = prepare(control_model(), sensor_table(), config=EstimatorConfig(wheelbase_m=2.2))
+    a, b = estimate_run(sr.path, fm), estimate_run(wide, fm)
+    assert b.source.endswith("run_wide.csv") and set(a.profiles) == set(b.profiles)
+    pd.testing.assert_frame_equal(a.indexes, b.indexes, check_exact=True)
+    for k in a.profiles:
+        np.testing.assert_array_equal(a.profiles[k].rail, b.profiles[k].rail)

@@ -3,8 +3,9 @@
 A reader is a function ``read_raw(path) -> RawRecording`` registered under a
 format name with a sniffer ``sniff(path, head_bytes) -> bool`` (ObsPy's
 ``read()`` plugin pattern). The built-in formats are MDF 4 (``mdf4``, via
-asammdf), Parquet (``parquet``) and CSV (``csv``); :func:`register_format`
-adds one. An unknown format raises :class:`~estimator.errors.UnknownFormatError`
+asammdf), Parquet (``parquet``), CSV as a long table (``csv``) and CSV as a
+wide table, one column per channel (``csv-wide``, :mod:`estimator.io.wide`);
+:func:`register_format` adds one. An unknown format raises :class:`~estimator.errors.UnknownFormatError`
 listing the supported ones.
 """
 
@@ -74,13 +75,16 @@ def formats() -> dict[str, FormatPlugin]:
 def _builtin() -> None:
     if _FORMATS:
         return
-    from estimator.io import mdf4, tabular
+    from estimator.io import mdf4, tabular, wide
 
     register_format(FormatPlugin("mdf4", (".mf4", ".mdf"), mdf4.sniff, mdf4.read_raw, "ASAM MDF 4 (asammdf)"))
     register_format(FormatPlugin("parquet", (".parquet", ".pq"), tabular.sniff_parquet, tabular.read_parquet,
                                  "long table channel, t_s, value, unit; header in the schema metadata"))
     register_format(FormatPlugin("csv", (".csv", ".txt"), tabular.sniff_csv, tabular.read_csv,
                                  "long table channel, t_s, value, unit; header as '# key = value' lines"))
+    register_format(FormatPlugin("csv-wide", (".csv", ".txt"), wide.sniff_wide_csv, wide.read_wide_csv,
+                                 "wide table as DAQ software exports it: a time column, then one column per channel "
+                                 "'name [unit]', an empty cell where a channel has no sample"))
 
 
 def sniff_format(path: Path) -> str:

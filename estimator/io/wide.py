@@ -1,0 +1,139 @@
+"""Wide CSV run files: a time column, then one column per channel — what most DAQ software exports.
+
+Layout (``# key = value`` run-header lines first, as in the long CSV of :mod:`estimator.io.tabular`)::
+
+    # run_id = 20240304_01_fw
+    time [s],ACC_W1L_Z [g],ACC_W1R_Z [g],...,SPEED [km/h],BALISE [m]
+    0.000,0.0123,-0.0045,...,36.0,
+    0.001,0.0131,-0.0050,...,,
+
+* The first column is the time: named ``t``, ``t_s``, ``time`` or ``zeit`` (any case), in seconds unless its header
+  gives ``[ms]`` or ``[us]``.
+* A channel's unit is its header's bracket (``name [unit]`` or ``name (unit)``); none: the sensor table's unit is
+  taken, as for a long table with a blank unit.
+* Channels of different rates share the rows: an **empty cell is no sample** of that channel (speed at 100 Hz in a
+  1 kHz table, one cell per balise passage), while a cell reading ``NaN`` is a sample that is missing (a dropout,
+  masked by quality control). Any other text is refused, naming the row and column.
+* Separator ``,``, ``;`` or tab, sniffed from the column header; with ``;`` a decimal comma is accepted
+  (``0,0123``), as spreadsheets in much of Europe write it.
+"""
+
+from __future__ import annotations
+
+import csv
+import re
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from estimator.errors import RunFileError
+from estimator.io.registry import RawChannel, RawRecording
+from estimator.io.tabular import read_csv_header
+
+__all__ = ["sniff_wide_csv", "read_wide_csv", "write_wide_csv", "TIME_NAMES"]
+
+TIME_NAMES = ("t", "t_s", "time", "zeit")
+_TIME_UNITS = {"": 1.0, "s": 1.0, "sec": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6}
+_HEAD = re.compile(r"^\s*(?P<name>.*?)\s*(?:[\[(]\s*(?P<unit>[^\])]*?)\s*[\])])?\s*$")
+_NAN_WORDS = {"nan", "NaN", "NAN", "-nan", "+nan"}
+
+
+def _name_unit(column: str) -> tuple[str, str]:
+    m = _HEAD.match(str(column))
+    return (m.group("name"), m.group("unit") or "") if m else (str(column).strip(), "")
+
+
+def _first_line(text: str) -> str | None:
+    return next((ln for ln in text.splitlines() if ln.strip() and not ln.startswith("#")), None)
+
+
+def _separator(line: str) -> str:
+    counts = {sep: line.count(sep) for sep in (",", ";", "\t")}
+    return max(counts, key=counts.get)
+
+
+def sniff_wide_csv(path: Path, head: bytes) -> bool:
+    try:
+        text = head.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        return False
+    line = _first_line(text)
+    if line is None:
+        return False
+    cols = next(csv.reader([line], delimiter=_separator(line)))
+    return len(cols) >= 2 and _name_unit(cols[0])[0].lower() in TIME_NAMES and "channel" not in cols
+
+
+def read_wide_csv(path: Path) -> RawRecording:
+    header, skip = read_csv_header(path)
+    with open(path, encoding="utf-8-sig") as fh:
+        for _ in range(skip):
+            fh.readline()
+        first = fh.readline()
+    sep = _separator(first)
+    try:
+        df = pd.read_csv(path, skiprows=skip, sep=sep, encoding="utf-8-sig", dtype=str, keep_default_na=False)
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+        raise RunFileError(f"{path}: not a readable CSV run table ({exc})") from None
+    cols = [str(c) for c in df.columns]
+    t_name, t_unit = _name_unit(cols[0])
+    if t_name.lower() not in TIME_NAMES or len(cols) < 2:
+        raise RunFileError(f"{path}: a wide CSV run file starts with a time column ({', '.join(TIME_NAMES)}) and "
+                           f"has one column per channel; found {cols[:5]}")
+    if t_unit.strip() not in _TIME_UNITS:
+        raise RunFileError(f"{path}: time column {cols[0]!r}: unit {t_unit!r} is not one of "
+                           f"{sorted(k for k in _TIME_UNITS if k)}")
+    decimal_comma = sep == ";"
+    t = _numbers(df.iloc[:, 0], path, cols[0], decimal_comma, allow_blank=False) * _TIME_UNITS[t_unit.strip()]
+    channels = {}
+    for j, col in enumerate(cols[1:], start=1):
+        name, unit = _name_unit(col)
+        if not name:
+            raise RunFileError(f"{path}: column {j + 1} has no channel name in the header")
+        if name in channels:
+            raise RunFileError(f"{path}: channel {name!r} is given by two columns")
+        cells = df.iloc[:, j]
+        present = cells.str.strip() != ""
+        v = _numbers(cells[present], path, col, decimal_comma, allow_blank=True)
+        tc = t[present.to_numpy()]
+        order = np.argsort(tc, kind="stable")
+        channels[name] = RawChannel(name, tc[order], v[order], unit)
+    if not channels or all(c.t.size == 0 for c in channels.values()):
+        raise RunFileError(f"{path}: no samples")
+    return RawRecording(channels, dict(header))
+
+
+def _numbers(cells: pd.Series, path: Path, column: str, decimal_comma: bool, *, allow_blank: bool) -> np.ndarray:
+    """The cells as floats: ``NaN`` words are NaN, anything else that is not a number is refused by row."""
+    text = cells.str.strip()
+    if decimal_comma:
+        text = text.str.replace(",", ".", regex=False)
+    nan_word = text.isin(_NAN_WORDS)
+    values = pd.to_numeric(text.where(~nan_word, "nan"), errors="coerce").to_numpy(float)
+    bad = np.isnan(values) & ~nan_word.to_numpy()
+    if not allow_blank:
+        bad |= nan_word.to_numpy()
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        row = int(cells.index[k]) + 1
+        raise RunFileError(f"{path}: column {column!r}, data row {row} (counted from 1 after the column header): "
+                           f"{cells.iloc[k]!r} is not a number")
+    return values
+
+
+def write_wide_csv(channels, header, path) -> Path:
+    """Raw channels (a mapping of :class:`RawChannel`) and a header as a wide CSV run file: the union of the channels'
+    time stamps as rows, an empty cell where a channel has no sample."""
+    p = Path(path)
+    t = np.unique(np.concatenate([np.asarray(c.t, float) for c in channels.values()]))
+    out = {"time [s]": [f"{v:.17g}" for v in t]}
+    for c in channels.values():
+        col = np.full(t.size, "", dtype=object)
+        col[np.searchsorted(t, np.asarray(c.t, float))] = [f"{v:.17g}" for v in np.asarray(c.values, float)]
+        out[f"{c.name} [{c.unit}]" if c.unit else c.name] = col
+    with open(p, "w", encoding="utf-8", newline="") as fh:
+        for k, v in header.items():
+            fh.write(f"# {k} = {v}\n")
+        pd.DataFrame(out).to_csv(fh, index=False)
+    return p
