@@ -345,7 +345,6 @@ def merge_geometry(modes: FEModes, geometry) -> FEModes:
     order = np.array([row[n] for n in ids.tolist()], np.int64)
     shapes = modes.shapes[:, order, :]
     steps = []
-    local = np.zeros(0, np.int64)
     if geo.displacement_frames is not None:
         frames = np.asarray(geo.displacement_frames, float)[keep]
         local = np.flatnonzero(np.abs(frames - np.eye(3)).max(axis=(1, 2)) > 0)
@@ -354,8 +353,7 @@ def merge_geometry(modes: FEModes, geometry) -> FEModes:
             log.warning("%s: %d node(s) of the geometry %s have displacement coordinate systems (CD); the modes were "
                         "read from a %s file, whose components are taken as global, not rotated", modes.source,
                         local.size, geo.source, modes.format or "non-punch")
-            local = local[:0]
-        if local.size:
+        elif local.size:
             # components along the node's own directions -> global: u = R u_local, for translations and rotations
             shapes = shapes.copy()
             for j in range(0, shapes.shape[2], 3):
