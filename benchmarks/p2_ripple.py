@@ -31,6 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
+from line_laws import line_loss_reference_hz
+
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 FRAME_FREQS_HZ = np.array([15.0, 20.0, 27.0, 32.0, 36.0, 40.0, 45.0, 50.0, 56.0, 63.0, 80.0, 100.0])
@@ -44,16 +46,6 @@ class _Vehicle:
 
     def __init__(self, params, hertz):
         self.params, self.hertz = params, hertz
-
-
-def line_loss_reference_hz() -> float:
-    """Frequency where the line's causal unit loss law ``g`` has zero real part (its layers' storage stiffness
-    equals the table's there)."""
-    from lab_data.line.damping import unit_loss_fit
-
-    f = np.geomspace(1.0, 3000.0, 20001)
-    g = unit_loss_fit().g(f)
-    return float(f[np.argmin(np.abs(g.real))])
 
 
 def frame_table(vehicle, speed: float) -> None:

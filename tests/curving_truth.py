@@ -11,10 +11,10 @@ from __future__ import annotations
 import numpy as np
 
 
-def curving_law(d, day: int = 1) -> tuple[float, float]:
-    """The line's own contact angles (γ_L, γ_R) [rad] of the leading wheelset on curve C1's body at the median true
-    speed there of the runs of survey ``day`` (1-based) of the campaign in folder ``d`` (the scenario's curving
-    parameters)."""
+def curving_law(d, day: int = 1, leading: bool = True) -> tuple[float, float]:
+    """The line's own contact angles (γ_L, γ_R) [rad] of the leading (or trailing) wheelset on curve C1's body at
+    the median true speed there of the runs of survey ``day`` (1-based) of the campaign in folder ``d`` (the
+    scenario's curving parameters)."""
     import pandas as pd
 
     from lab_data.line.curving import CurvingParameters, rail_contact_angles
@@ -29,7 +29,7 @@ def curving_law(d, day: int = 1) -> tuple[float, float]:
             body.append(tr["speed_m_s"][(tr["chainage_m"] > 510) & (tr["chainage_m"] < 670)].abs().to_numpy())
     speed = float(np.median(np.concatenate(body)))
     cp = CurvingParameters(**{k: v for k, v in truth["curving"].items() if k in CurvingParameters.__dataclass_fields__})
-    g_l, g_r = rail_contact_angles(default_line(), np.array([590.0]), np.array([speed]), np.array([True]), cp)
+    g_l, g_r = rail_contact_angles(default_line(), np.array([590.0]), np.array([speed]), np.array([leading]), cp)
     return float(g_l[0]), float(g_r[0])
 
 
