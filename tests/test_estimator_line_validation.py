@@ -40,7 +40,7 @@ def _with(**changes) -> dict:
     return json.loads(json.dumps({**GOOD, **changes}))
 
 
-def _refused(tmp_path, line: dict, *named: str) -> str:
+def _assert_refused(tmp_path, line: dict, *named: str) -> str:
     """Read ``line``; assert a RunFileError starting with the file and naming every one of ``named``."""
     p = _write(tmp_path, line)
     with pytest.raises(RunFileError) as info:
@@ -81,22 +81,22 @@ def test_the_well_formed_line_and_the_virtual_lines_file_read(tmp_path):
      ["trackform_sections[0] 'slab'", "zero length"]),
 ])
 def test_reversed_or_empty_stretches_and_curves_that_never_reach_their_radius_are_refused(tmp_path, change, named):
-    _refused(tmp_path, _with(**change), *named)
+    _assert_refused(tmp_path, _with(**change), *named)
 
 
 def test_overlapping_nested_or_twice_named_sections_are_refused(tmp_path):
     """Nested sections are not supported: the monitoring names a chainage by the section starting last before it
     (``Sections.at``), so the outer section would lose the chainages past the inner one."""
-    _refused(tmp_path, _with(sections=[{"id": "A", "from_m": 0, "to_m": 300}, {"id": "B", "from_m": 200,
+    _assert_refused(tmp_path, _with(sections=[{"id": "A", "from_m": 0, "to_m": 300}, {"id": "B", "from_m": 200,
                                                                                "to_m": 500}]),
              "section 'A' (0-300 m) and section 'B' (200-500 m) overlap")
-    _refused(tmp_path, _with(sections=[{"id": "A", "from_m": 0, "to_m": 500}, {"id": "B", "from_m": 100,
+    _assert_refused(tmp_path, _with(sections=[{"id": "A", "from_m": 0, "to_m": 500}, {"id": "B", "from_m": 100,
                                                                                "to_m": 200}]),
              "section 'A' (0-500 m) and section 'B' (100-200 m) overlap", "nest")
-    _refused(tmp_path, _with(sections=[{"id": "A", "from_m": 0, "to_m": 300}, {"id": "A", "from_m": 300,
+    _assert_refused(tmp_path, _with(sections=[{"id": "A", "from_m": 0, "to_m": 300}, {"id": "A", "from_m": 300,
                                                                                "to_m": 500}]),
              "section id 'A' is given twice (0-300 m and 300-500 m)")
-    _refused(tmp_path, _with(curves=[GOOD["curves"][0], dict(GOOD["curves"][0], id="C2", from_m=250, to_m=450)]),
+    _assert_refused(tmp_path, _with(curves=[GOOD["curves"][0], dict(GOOD["curves"][0], id="C2", from_m=250, to_m=450)]),
              "curve 'C1' (100-300 m) and curve 'C2' (250-450 m) overlap")
 
 
@@ -104,11 +104,11 @@ def test_overlapping_trackform_sections_are_refused(tmp_path):
     """``trackform_at`` takes the first section holding a chainage, the estimate's track model the last."""
     tfs = [{"name": "slab", "from_m": 0, "to_m": 500, "support_spacing": 0.6},
            {"name": "ballast", "from_m": 200, "to_m": 300, "support_spacing": 0.65}]
-    _refused(tmp_path, _with(trackform_sections=tfs),
+    _assert_refused(tmp_path, _with(trackform_sections=tfs),
              "trackform_sections[0] 'slab' (0-500 m) and trackform_sections[1] 'ballast' (200-300 m) overlap")
     # under the other key the message names that key
     line = {k: v for k, v in GOOD.items() if k != "trackform_sections"}
-    _refused(tmp_path, dict(line, trackforms=tfs), "trackforms[0] 'slab'", "trackforms[1] 'ballast'", "overlap")
+    _assert_refused(tmp_path, dict(line, trackforms=tfs), "trackforms[0] 'slab'", "trackforms[1] 'ballast'", "overlap")
 
 
 @pytest.mark.parametrize("entry, named", [
@@ -125,7 +125,7 @@ def test_overlapping_trackform_sections_are_refused(tmp_path):
      ["trackform_sections[0] 'slab'", "'pad_stiffness_z' must be a number"]),
 ])
 def test_unknown_or_malformed_trackform_fields_are_refused_with_the_valid_names(tmp_path, entry, named):
-    msg = _refused(tmp_path, _with(trackform_sections=[entry]), *named)
+    msg = _assert_refused(tmp_path, _with(trackform_sections=[entry]), *named)
     assert "<Trackform(...)>" not in msg
 
 
@@ -147,7 +147,7 @@ def test_unknown_or_malformed_trackform_fields_are_refused_with_the_valid_names(
     (dict(balises=[{"id": "B1", "chainage_m": "km 0+050"}]), ["balise 'B1'", "'chainage_m' must be a number"]),
 ])
 def test_wrong_json_types_and_bad_numbers_are_named(tmp_path, change, named):
-    _refused(tmp_path, _with(**change), *named)
+    _assert_refused(tmp_path, _with(**change), *named)
 
 
 def test_a_key_given_twice_is_refused(tmp_path):
@@ -170,7 +170,7 @@ def test_a_key_given_twice_is_refused(tmp_path):
 def test_welds_and_crossings_the_alignment_would_skip_are_refused(tmp_path, change, named):
     """The alignment skips a weld on ``"left"`` (it matches neither rail) and a crossing without a numeric
     chainage, and counts a crossing on ``"left"`` on both rails; a rail left out means both."""
-    _refused(tmp_path, _with(**change), *named)
+    _assert_refused(tmp_path, _with(**change), *named)
 
 
 @pytest.mark.parametrize("content, named", [

@@ -18,7 +18,6 @@ import re
 import warnings
 
 import numpy as np
-import pandas as pd
 import pytest
 
 import ema
@@ -68,7 +67,7 @@ def si_modes(si, tmp_path_factory):
     return read_modeset(out)
 
 
-def same_modes(a, b, f_rtol=1e-6, shape_rtol=1e-9):
+def assert_same_modes(a, b, f_rtol=1e-6, shape_rtol=1e-9):
     assert len(a) == len(b) == 3
     np.testing.assert_allclose(a.freqs_hz, b.freqs_hz, rtol=f_rtol)
     np.testing.assert_allclose(a.zeta, b.zeta, rtol=max(10 * f_rtol, 1e-6))
@@ -110,7 +109,7 @@ def test_d1_us_lab_file_identifies_the_si_modes(data, si, si_modes, tmp_path, ca
     f, r = data
     uff = rs.write(tmp_path / "ins2_lbf.uff", rs.specs(f, r, acc_unit="in/s^2", acc_factor=0.0254,
                                                         force_unit="lbf", force_factor=LBF), binary=True)
-    same_modes(identify(capsys, tmp_path / "m", "--hammer", uff, "--channels", si[1]), si_modes)
+    assert_same_modes(identify(capsys, tmp_path / "m", "--hammer", uff, "--channels", si[1]), si_modes)
 
 
 def test_d1_raw_volts_without_sensitivity_are_refused_naming_file_dataset_channel_and_label(data, si, tmp_path):
@@ -299,7 +298,7 @@ def test_d4_one_hit_per_file_is_read_as_one_test(data, si, si_modes, tmp_path, c
     np.testing.assert_array_equal(test.responses, si[2].responses)
     assert f"2 = {files[1]} hit 1" in test.history[-1] and "4 files of one setup" in test.history[-1]
     args = [x for p in files for x in ("--hammer", p)]
-    same_modes(identify(capsys, tmp_path / "m", *args, "--channels", si[1]), si_modes, 1e-12, 1e-12)
+    assert_same_modes(identify(capsys, tmp_path / "m", *args, "--channels", si[1]), si_modes, 1e-12, 1e-12)
 
     other_fs = rs.write(tmp_path / "fs.uff", rs.specs(f[:1], r[:1], abscissa_inc=0.5 / rs.FS), binary=True)
     with pytest.raises(SamplingError, match=re.escape(f"{other_fs}: sampling rate ") + r"409\d\.\d+ Hz, but "
@@ -406,7 +405,7 @@ def test_d8_force_and_accelerometer_on_one_node(data, si, si_modes, tmp_path, ca
     np.testing.assert_array_equal(test.responses, si[2].responses)
     np.testing.assert_array_equal(test.force, si[2].force)
     modes = identify(capsys, tmp_path / "m", "--hammer", uff, "--channels", csv)
-    same_modes(modes, si_modes, 1e-12, 1e-12)
+    assert_same_modes(modes, si_modes, 1e-12, 1e-12)
 
     fr = np.arange(1, 801) * 0.5
     p = rs.write(tmp_path / "dp_frf.uff", rs.frf_specs(rs.accelerance(fr), fr, rsp_node=lambda s: 900
