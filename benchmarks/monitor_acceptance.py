@@ -30,7 +30,6 @@ import _checkout  # noqa: F401  (this checkout's packages first: measure the cod
 import argparse
 import logging
 import shutil
-import sys
 import tempfile
 import time
 from dataclasses import dataclass
@@ -337,6 +336,9 @@ def main(argv=None) -> int:
     ap.add_argument("--averaging-section", type=float, nargs=2, default=SECTION, metavar=("FROM", "TO"),
                     help="the averaging campaign's section [m] (default 400 800, the corrugated curve; e.g. 1260 "
                          "1640, straight_4 at cruise speed, measures the 300-1000 mm band's coverage)")
+    ap.add_argument("--track-loss-references", type=float, nargs="+", default=None, metavar="HZ",
+                    help="the track source's loss-law variants: causal layers with the stated stiffness at each of "
+                         "these frequencies (default: MonitoringConfig's, the ends of the inverted band)")
     ap.add_argument("--work", default=None, help="work folder (default: a temporary one, removed)")
     ap.add_argument("--reuse", action="store_true", help="use the stores already in --work (days averaged again)")
     a = ap.parse_args(argv)
@@ -346,8 +348,9 @@ def main(argv=None) -> int:
     setup = Setup(a.loss_reference_hz, a.fe_export_hz, a.calibration)
     try:
         if a.part in ("averaging", "all"):
+            loss = {} if a.track_loss_references is None else {"track_loss_reference_hz": tuple(a.track_loss_references)}
             averaging(work, MonitoringConfig(n_perturbed=a.n_perturbed, uncertainty_runs=a.uncertainty_runs,
-                                             sensor_noise_rms_m_s2=SENSOR_NOISE_M_S2), setup, a.reuse,
+                                             sensor_noise_rms_m_s2=SENSOR_NOISE_M_S2, **loss), setup, a.reuse,
                       tuple(a.averaging_section))
         if a.part in ("growth", "all"):
             growth(work, MonitoringConfig(n_perturbed=0, uncertainty_runs=a.growth_uncertainty_runs,

@@ -50,16 +50,19 @@ def _campaign(scenario: str) -> str:
     return line_campaign_dir(scenario, days=2, runs_per_day=2, section=FIRST_CURVE_SECTION)
 
 
-def _diagnose(scenario: str, validation_stretches=(), **config):
+def _diagnose(scenario: str, validation_stretches=(), line=None, curve_contact_angles=None, **config):
+    """The site's diagnosis on the campaign of ``scenario``; ``line`` (default: the campaign's ``line.json``) and
+    ``curve_contact_angles`` (:class:`~estimator.config.EstimatorConfig`) change what the estimator is told."""
     from estimator.config import EstimatorConfig
     from estimator.diagnosis import DiagnosisConfig, run_field_diagnosis
     from lab_data.line.campaign import FIRST_CURVE_SECTION
 
     d = _campaign(scenario)
     res = run_field_diagnosis(sorted(glob.glob(f"{d}/runs/*/*.mf4")), sorted(glob.glob(f"{d}/trolley/*.csv")),
-                              FIRST_CURVE_SECTION, _model_file(), f"{d}/sensors.csv", line=f"{d}/line.json",
-                              config=DiagnosisConfig(**{"workers": 2, **config}),
-                              estimator_config=EstimatorConfig(wheelbase_m=2.1),
+                              FIRST_CURVE_SECTION, _model_file(), f"{d}/sensors.csv",
+                              line=str(line or f"{d}/line.json"), config=DiagnosisConfig(**{"workers": 2, **config}),
+                              estimator_config=EstimatorConfig(wheelbase_m=2.1,
+                                                               curve_contact_angles=curve_contact_angles),
                               validation_stretches=validation_stretches)
     return d, res
 

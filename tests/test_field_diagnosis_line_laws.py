@@ -22,49 +22,22 @@ offset (−44.7 mm), and nothing else.
 from __future__ import annotations
 
 import functools
-import glob
 import tempfile
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from line_laws import curve_c1_angles, line_with_causal_layers
+from test_field_diagnosis_line import _campaign, _diagnose, _index_error
 
 pytestmark = pytest.mark.slow
 
 
-@functools.lru_cache(maxsize=1)
-def _model_file() -> str:
-    from receptance import save_model
-    from test_estimator_synthetic import lab_workflow_model
-
-    path = Path(tempfile.mkdtemp(prefix="field_diag_laws_")) / "hybrid_model.npz"
-    save_model(lab_workflow_model(), path)
-    return str(path)
-
-
 @functools.lru_cache(maxsize=None)
 def _diagnose_with_line_laws(scenario: str):
-    from estimator.config import EstimatorConfig
-    from estimator.diagnosis import DiagnosisConfig, run_field_diagnosis
-    from lab_data.line.cache import line_campaign_dir
-    from lab_data.line.campaign import FIRST_CURVE_SECTION
-
-    d = line_campaign_dir(scenario, days=2, runs_per_day=2, section=FIRST_CURVE_SECTION)
+    d = _campaign(scenario)
     line = line_with_causal_layers(d, Path(tempfile.mkdtemp(prefix=f"laws_{scenario}_")))
-    res = run_field_diagnosis(sorted(glob.glob(f"{d}/runs/*/*.mf4")), sorted(glob.glob(f"{d}/trolley/*.csv")),
-                              FIRST_CURVE_SECTION, _model_file(), f"{d}/sensors.csv", line=str(line),
-                              config=DiagnosisConfig(workers=2),
-                              estimator_config=EstimatorConfig(wheelbase_m=2.1,
-                                                               curve_contact_angles=curve_c1_angles(d)))
-    return d, res
-
-
-def _index_error(res, part: str, stage: str) -> float:
-    """Band-index RMS error [dB] of a set (pooled over the runs, wheelsets, rails and bands, by window count)."""
-    t = res.index_errors.query("set == @part and stage == @stage")
-    return float(np.sqrt((t["rms_error_db"] ** 2 * t["n_windows"]).sum() / t["n_windows"].sum()))
+    return _diagnose(scenario, line=line, curve_contact_angles=curve_c1_angles(d))
 
 
 def test_nominal_with_the_lines_laws_accepts_nothing():
