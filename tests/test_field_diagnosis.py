@@ -227,6 +227,7 @@ def test_sensor_offset_found():
     assert isinstance(first.effect, SensorOffset) and first.effect.channel == "ACC_W1L_Z"
     assert abs(first.params["dy"] / 0.08 - 1) < 0.25
     assert res.accepted[0].effect == first.effect
+    assert "ACC_W1L_Z reads as if mounted" in first.as_dict()["meaning"]  # field_diagnosis.json and the report
     assert first.validation_after <= 0.5 * first.validation_before
 
 
@@ -611,3 +612,41 @@ def test_undetermined_parameter_returns_to_nominal_and_the_others_are_polished_a
     assert list(calls[1]) == [True, False, True]  # polished again without the undetermined one
     assert fit.params["end"] == pytest.approx(0.8, abs=0.02) and fit.params["factor"] == pytest.approx(0.37, abs=0.02)
     assert fit.error_after == pytest.approx(math.sqrt(1.25), abs=1e-3)  # "flat" at nominal: on its slope
+
+
+def test_accepted_effects_say_what_they_mean_in_the_field():
+    """Each effect's fitted values read in the field's terms: tread contact on a curve is a calibration, flange
+    contact a gauge or steering problem; a section's stiffness within the pad tables' spread is a table to correct,
+    outside it pads to inspect; an offset accelerometer is named with its offset; every catalogue effect says
+    something."""
+    from types import SimpleNamespace
+
+    from estimator.diagnosis.effects import (EFFECT_NAMES, ContactStiffness, DiscreteSupports, DynamicStiffening,
+                                             FieldEffect)
+    from estimator.diagnosis.report import _meanings
+
+    curve = ContactAngle(curve="C1", role="leading")
+    tread = curve.meaning({"gamma_L": math.radians(5.3), "gamma_R": math.radians(0.8)})
+    assert "5.3° on rail L" in tread and "not a defect" in tread and "flange" not in tread
+    assert "flange root" in curve.meaning({"gamma_L": math.radians(15.0), "gamma_R": 0.01})
+    flange = curve.meaning({"gamma_L": 0.01, "gamma_R": math.radians(58.0)})
+    assert "rail R runs on its flange" in flange and "gauge" in flange
+    section = TrackformEffect(from_m=470.0, to_m=1800.0, section="S")
+    assert "nothing to inspect" in section.meaning({"stiffness_factor": 0.93, "damping_factor": 1.13})
+    soft = section.meaning({"stiffness_factor": 0.5, "damping_factor": 1.0})
+    assert "softer" in soft and "inspect the pads" in soft and "470.0-1800.0 m" in soft
+    stretch = TrackformStretch(from_m=720.0, to_m=768.0, section="s")
+    local = stretch.meaning({"stiffness_factor": 0.57, "damping_factor": 1.0, "from_m": 720.0, "to_m": 785.0})
+    assert "720.0-785.0 m" in local and "line description" in local
+    offset = SensorOffset(channel="ACC_W1L_Z").meaning({"dx": 0.0, "dy": -0.038})
+    assert "ACC_W1L_Z" in offset and "-38 mm along y" in offset and "along x" not in offset
+    effects = {e.name: e for e in (section, DiscreteSupports(), DynamicStiffening(), curve,
+                                   SensorOffset(channel="ACC_W1L_Z"), ContactStiffness(), WheelRoughness())}
+    assert set(effects) == set(EFFECT_NAMES)
+    for e in effects.values():
+        assert type(e).meaning is not FieldEffect.meaning
+        assert e.meaning({p.name: p.nominal for p in e.parameters})
+    accepted = [SimpleNamespace(effect=section, params={"stiffness_factor": 0.5, "damping_factor": 1.0})]
+    html = "".join(_meanings(accepted))
+    assert "What the accepted effects mean" in html and "inspect the pads" in html
+    assert _meanings(()) == []

@@ -120,7 +120,7 @@ class CandidateFit:
                 "error_validation_db": [self.validation_before, self.validation_after],
                 "n_validation_cells": self.n_validation, "significant": self.significant,
                 "plausible": self.plausible, "validated": self.validated, "verdict": self.verdict(),
-                "fixes": self.fixes.to_dict(orient="records")}
+                "fixes": self.fixes.to_dict(orient="records"), "meaning": self.effect.meaning(self.params)}
 
 
 @dataclass(frozen=True)

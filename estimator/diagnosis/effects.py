@@ -2,8 +2,10 @@
 
 An effect is a small frozen class with named, bounded parameters
 (:class:`Parameter`), a location (which evidence segments its change reaches:
-:meth:`FieldEffect.acts_on`) and :meth:`FieldEffect.apply`, which returns the
-:class:`~estimator.diagnosis.state.FieldState` with the effect's values.
+:meth:`FieldEffect.acts_on`), :meth:`FieldEffect.apply`, which returns the
+:class:`~estimator.diagnosis.state.FieldState` with the effect's values, and
+:meth:`FieldEffect.meaning`, what an accepted fit says in the field's terms
+(a calibration to keep, or a component to inspect) for the report.
 Adding an effect to the catalogue is one such class and one line in
 :func:`catalogue`.
 
@@ -40,6 +42,16 @@ from estimator.diagnosis.state import FieldState, TrackformChange
 __all__ = ["Parameter", "FieldEffect", "TrackformEffect", "TrackformStretch",
            "DiscreteSupports", "DynamicStiffening", "ContactAngle", "SensorOffset",
            "ContactStiffness", "WheelRoughness", "EFFECT_NAMES", "catalogue"]
+
+
+#: stiffness factors of a whole section that the frequency a pad's table holds at explains: a causal layer's
+#: stiffness rises by 2 arctan(η)/π per neper (:func:`receptance.track.layer_dispersion`), for η = 0.2 ×0.75 at
+#: 10 Hz and ×1.3 at 1 kHz against its value at 100 Hz
+TYPICAL_TABLE_SPREAD = (0.7, 1.4)
+#: contact angles bounding the tread (cone and its rounding to the flange root) and the flange root (rising to the
+#: flank): a 1:40 or 1:20 tread is 1.4-2.9°, worn treads reach a few degrees; the flange flank is 60-75°
+FLANGE_ROOT_RAD = math.radians(8.0)
+FLANGE_FLANK_RAD = math.radians(30.0)
 
 
 @dataclass(frozen=True)
@@ -117,6 +129,10 @@ class FieldEffect:
     def label(self) -> str:
         return f"{self.name} ({self.where})" if self.where else self.name
 
+    def meaning(self, values: dict) -> str:
+        """What an accepted fit with ``values`` says about the track, the vehicle or the sensors, and what to do."""
+        return ""
+
 
 @dataclass(frozen=True)
 class TrackformEffect(FieldEffect):
@@ -138,6 +154,18 @@ class TrackformEffect(FieldEffect):
     def acts_on(self, seg) -> bool:
         # any overlap: a segment partly covered is inverted part by part (Evaluator.pieces)
         return seg.from_m < self.to_m and seg.to_m > self.from_m
+
+    def meaning(self, values: dict) -> str:
+        k, c = values["stiffness_factor"], values.get("damping_factor", 1.0)
+        a, b = self.extent(values)
+        what = (f"The track on {a:.1f}-{b:.1f} m acts with pads and subplates {k:.2f} times as stiff and {c:.2f} "
+                f"times as damped as its trackform table says.")
+        if TYPICAL_TABLE_SPREAD[0] <= k <= TYPICAL_TABLE_SPREAD[1]:
+            return (what + " That is within the spread of a pad's table values and the frequency they were tested at "
+                    "(a causal pad stiffens with frequency): correct the section's trackform for later estimates; "
+                    "nothing to inspect on its account.")
+        state = "softer: pads degraded, fastenings loose or missing" if k < 1 else "stiffer: pads aged or hardened"
+        return what + f" That is {state}; inspect the pads and fastenings there."
 
     def apply(self, state, values):
         k, c = values["stiffness_factor"], values.get("damping_factor", 1.0)
@@ -192,6 +220,11 @@ class TrackformStretch(TrackformEffect):
         a, b = self.extent(values)
         return b - a >= self.min_length_m
 
+    def meaning(self, values: dict) -> str:
+        return (super().meaning(values) + " The change is local (its ends fitted from the evidence): if it is a "
+                "known trackform change (renewed pads, another fastening), add it to the line description as a "
+                "trackform section.")
+
 
 @dataclass(frozen=True)
 class DiscreteSupports(FieldEffect):
@@ -201,6 +234,11 @@ class DiscreteSupports(FieldEffect):
     @property
     def where(self) -> str:
         return "every trackform, at its sleeper spacing"
+
+    def meaning(self, values: dict) -> str:
+        return ("The rail's support on discrete sleepers shows in the evidence (the rail's receptance between "
+                "sleepers, up to its pinned-pinned resonance): estimate this line with trackform_supports = "
+                "'discrete'.")
 
     def apply(self, state, values):
         return state.with_supports("discrete", None)
@@ -226,6 +264,11 @@ class DynamicStiffening(FieldEffect):
     def where(self) -> str:
         return "every trackform's pads and subplates"
 
+    def meaning(self, values: dict) -> str:
+        return (f"The pads and subplates behave as causal elastomers whose table stiffness holds at "
+                f"{values['reference_hz']:.0f} Hz and rises with frequency: set loss_reference_hz = "
+                f"{values['reference_hz']:.0f} in the line's trackforms for later estimates.")
+
     def apply(self, state, values):
         return state.with_loss_reference(values["reference_hz"])
 
@@ -245,12 +288,28 @@ class ContactAngle(FieldEffect):
     def acts_on(self, seg) -> bool:
         return seg.curve == self.curve and (self.role == "any" or seg.role == self.role)
 
+    def meaning(self, values: dict) -> str:
+        g = {r: values[f"gamma_{r}"] for r in "LR"}
+        top = max(g, key=g.get)
+        deg = ", ".join(f"{math.degrees(v):.1f}° on rail {r}" for r, v in g.items())
+        what = f"On curve {self.curve} the {self.role} wheelset's contact angles are {deg}."
+        if g[top] < FLANGE_ROOT_RAD:
+            return (what + " Both wheels run on their treads, the wheelset shifted as the bogie's curving puts it "
+                    "(its yaw, the cant deficiency, the profiles' shape): a calibration of this curve, not a defect; "
+                    "the calibrated model keeps it for the curve's estimates.")
+        if g[top] < FLANGE_FLANK_RAD:
+            return (what + f" The wheel on rail {top} runs near its flange root: more shift than the treads "
+                    "explain (tight gauge, worn profiles); check the gauge and the profiles if it is unexpected.")
+        return (what + f" The wheel on rail {top} runs on its flange: the gauge is narrower than the wheelset "
+                "needs, or the bogie steers badly; check the gauge and the flange lubrication in this curve.")
+
     def apply(self, state, values):
         return state.with_curve_angles(self.curve, self.role, values["gamma_L"], values["gamma_R"])
 
 
 #: the offsets an accelerometer's reading depends on, per measuring direction (δ × d ≠ 0)
 _LEVERS = {"z": ("dx", "dy"), "y": ("dx", "dz"), "x": ("dy", "dz")}
+_AXES = ("dx", "dy", "dz")
 
 
 @dataclass(frozen=True)
@@ -274,6 +333,13 @@ class SensorOffset(FieldEffect):
         # the other wheelset's channels enter a coupled segment through its contact forces
         return self.wheelset in (seg.wheelset, seg.other)
 
+    def meaning(self, values: dict) -> str:
+        axes = [a for a in sorted(values) if a in _AXES]
+        moved = ", ".join(f"{1e3 * values[a]:+.0f} mm along {a[1]}" for a in axes if abs(values[a]) >= 5e-4) or \
+            ", ".join(f"{1e3 * values[a]:+.1f} mm along {a[1]}" for a in axes)
+        return (f"Accelerometer {self.channel} reads as if mounted {moved} from the sensor table's point: check "
+                "its mount (bracket, adhesive, a swapped position) or correct its position in the sensor table.")
+
     def apply(self, state, values):
         d = {a: values.get(a, 0.0) for a in ("dx", "dy", "dz")}
         return state.with_sensor_offset(self.channel, d["dx"], d["dy"], d["dz"])
@@ -283,6 +349,11 @@ class SensorOffset(FieldEffect):
 class ContactStiffness(FieldEffect):
     name = "contact_stiffness"
     parameters: tuple = (Parameter("wheel_load_N", 1e4, 2e5, 5.5e4, log=True, unit="N", plausible=(2e4, 1.5e5)),)
+
+    def meaning(self, values: dict) -> str:
+        return (f"The wheel-rail contact is as stiff as under a wheel load of {values['wheel_load_N'] / 1e3:.0f} kN "
+                "(Hertz): compare it with the vehicle's weighed load; a different load or worn profiles (other "
+                "curvature radii) change the contact stiffness.")
 
     def apply(self, state, values):
         return state.with_wheel_load(values["wheel_load_N"])
@@ -306,6 +377,13 @@ class WheelRoughness(FieldEffect):
 
     def acts_on(self, seg) -> bool:
         return seg.wheelset == self.wheelset
+
+    def meaning(self, values: dict) -> str:
+        return (f"Wheelset {self.wheelset}'s wheel on vehicle side {self.side} leaves its own roughness in the rail "
+                f"estimate ({values['level_db']:.0f} dB re 1 µm at 100 mm, {values['slope_db_per_octave']:+.1f} "
+                "dB/octave) beyond what the comb filter removes: measure or reprofile the wheel. The estimator does "
+                "not subtract it: where the rail is smoother than the wheel, that rail's estimate from this wheel "
+                "reads the wheel.")
 
     def apply(self, state, values):
         return state.with_wheel_roughness(self.wheelset, self.side, values["level_db"], values["slope_db_per_octave"])

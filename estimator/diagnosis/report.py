@@ -63,6 +63,15 @@ def diagnosis_document(res) -> dict:
         "timings_s": res.timings_s})
 
 
+def _meanings(accepted) -> list[str]:
+    """The accepted effects in the field's terms (:meth:`~estimator.diagnosis.effects.FieldEffect.meaning`)."""
+    if not accepted:
+        return []
+    items = "".join(f"<li><b>{escape(c.effect.label())}</b>: {escape(c.effect.meaning(c.params))}</li>"
+                    for c in accepted)
+    return ["<h2>What the accepted effects mean</h2>", f"<ol>{items}</ol>"]
+
+
 def _html(res, figs: dict) -> str:
     d = res.diagnosis
     cmp_ = res.comparison
@@ -70,6 +79,7 @@ def _html(res, figs: dict) -> str:
     body = [f"<h1>Field diagnosis — site {res.site[0]:g}–{res.site[1]:g} m, {escape(res.calibration_date)}</h1>",
             f"<div class='box{warn}'><b>Verdict.</b> {escape(d.verdict)}</div>",
             f"<p class='small'>Criterion: {escape(d.criterion)}</p>",
+            *_meanings(d.accepted),
             "<h2>Compare with the reference (nominal model)</h2>",
             f"<p>Figure of merit E = {cmp_.figure_of_merit_db:.2f} dB (RMS level error of the calibration cells); "
             f"noise floor {d.noise_floor_db:.2f} dB (run-to-run scatter {d.scatter_db:.2f} dB, reference noise "
