@@ -70,6 +70,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
         vals = ", ".join(f"{k} {v:.4g}" for k, v in c.params.items())
         print(f"accepted: {c.effect.label()}: {vals}; error {c.error_before:.2f} -> {c.error_after:.2f} dB "
               f"(validation {c.validation_before:.2f} -> {c.validation_after:.2f} dB), dBIC {c.delta_bic:.0f}")
+        print(f"  {c.effect.meaning(c.params)}")
     print(d.verdict)
     print(f"results: {Path(args.out) / files['json'].name}, report {Path(args.out) / files['report'].name}")
     return 0
