@@ -69,12 +69,17 @@ def plot_band_pk_pk(estimate, band=(100.0, 300.0), *, span=None, wheelset=None, 
         a.grid(alpha=0.3)
         if span is not None:
             a.set_xlim(span)
+        if not a.lines:  # a rail whose channels were all missing or masked: say so rather than leave it blank
+            a.text(0.5, 0.5, f"no estimate of rail {rail} (its channels are missing or masked: see the QC log)",
+                   transform=a.transAxes, ha="center", va="center", fontsize=9)
     from estimator.config import EN13231_WINDOWS_M
 
     win = EN13231_WINDOWS_M.get(tuple(band), float("nan"))
     ax[0, 0].set_title(f"{estimate.run_id}: EN 13231-3 peak-to-peak, {band[0]:g}–{band[1]:g} mm, {win:g} m window, "
                        f"wheelset {w} ({'leading' if w == estimate.leading else 'trailing'})")
-    ax[0, 0].legend(fontsize=8, loc="upper right")
+    labelled = next((a for a in ax[:, 0] if a.lines), None)
+    if labelled is not None:
+        labelled.legend(fontsize=8, loc="upper right")
     ax[-1, 0].set_xlabel("chainage [m]")
     fig.tight_layout()
     return fig
