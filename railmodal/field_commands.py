@@ -52,6 +52,11 @@ def summarise_estimate(est, files: dict | None = None) -> list[str]:
             t = trail[(trail["stretch"] == r.stretch) & (trail["rail"] == r.rail) & (trail["band_mm"] == r.band_mm)]
             second = (f"trailing wheelset {t['median_pk_pk_um'].iloc[0]:.1f} um" if len(t) else
                       "NOT above the threshold on the trailing wheelset: the two estimates disagree")
+            if not len(t) and str(r.stretch).startswith("curve "):  # estimator.workflow names curve stretches so
+                # in a curve the two wheelsets' contact geometry differs (the bogie's yaw pushes the leading one
+                # towards its flange) and the default curving does not know it
+                second += ("; in a curve the leading wheelset's contact angles are the first suspect: calibrate them "
+                           "with 'railmodal field diagnose' at a trolley-measured site")
             lines.append(f"corrugated: {r.stretch}, rail {r.rail}, {r.band_mm} mm: {r.median_pk_pk_um:.1f} um pk-pk "
                          f"({second}), lambda {r.dominant_wavelength_mm:.0f} mm at {r.speed_m_s:.1f} m/s = "
                          f"{r.frequency_hz:.0f} Hz -> {r.mechanism}")

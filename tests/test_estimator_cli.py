@@ -112,7 +112,8 @@ def test_missing_and_bad_files_are_named(inputs, capsys, tmp_path):
 
 def test_the_summary_says_whether_the_trailing_wheelset_agrees():
     """A stretch above the threshold on the leading wheelset is printed with the trailing wheelset's value, or with
-    the plain statement that the trailing estimate is not above the threshold there (the two disagree)."""
+    the plain statement that the trailing estimate is not above the threshold there (the two disagree); in a curve
+    the leading wheelset's contact angles are named as the first suspect, with the command that calibrates them."""
     from types import SimpleNamespace
 
     from railmodal.field_commands import summarise_estimate
@@ -130,7 +131,13 @@ def test_the_summary_says_whether_the_trailing_wheelset_agrees():
     lines = [ln for ln in summarise_estimate(est) if ln.startswith("corrugated")]
     assert len(lines) == 2
     assert "rail L" in lines[0] and "NOT above the threshold on the trailing wheelset" in lines[0]
-    assert "rail R" in lines[1] and "trailing wheelset 21.9 um" in lines[1]
+    assert "contact angles are the first suspect" in lines[0] and "field diagnose" in lines[0]  # a curve
+    assert "rail R" in lines[1] and "trailing wheelset 21.9 um" in lines[1] and "suspect" not in lines[1]
+    # on a straight the disagreement is stated without the curve's suspect
+    straight = corr.assign(stretch="section straight_1")
+    lines = [ln for ln in summarise_estimate(SimpleNamespace(**{**vars(est), "corrugation": straight}))
+             if ln.startswith("corrugated")]
+    assert "NOT above the threshold" in lines[0] and "suspect" not in lines[0]
 
 
 def test_a_field_calibration_is_applied_named_and_refused_for_another_model(inputs, capsys, tmp_path):
