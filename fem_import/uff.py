@@ -18,9 +18,16 @@ Datasets used (layouts: UC-SDRL universal file descriptions, as printed by
   labels and coordinates, in the global Cartesian system: labels 0 and 1,
   or a system that **2420** defines as Cartesian with the identity rotation
   at the origin.  Nodes in any other system of 2420 (rotated, shifted,
-  cylindrical, spherical) are refused, naming the nodes and the system;
-  a label that no 2420 defines is logged and taken as global; a label that
-  2420 defines twice differently is refused (an identical repeat is accepted).
+  cylindrical, spherical) are refused, naming the nodes and the system (the
+  format does not say which way its matrix maps); a label that no 2420 or 18
+  defines is logged and taken as global; a label defined twice differently
+  is refused (an identical repeat is accepted).
+* **18** coordinate systems (origin, +x axis point, +xz plane point, in a
+  reference system): nodes whose coordinates are given in a Cartesian one
+  are converted to global, and mode shapes whose components are given in a
+  Cartesian or cylindrical one are turned to global at each node
+  (:mod:`fem_import.uff_coords`); curvilinear coordinates and spherical
+  components are refused by name.
 * **2412** elements: label, FE descriptor id, physical property and node
   labels, read here (not by pyuff, which reads one line of node labels and
   splits fields on blanks, so that an element with more than 8 nodes and
@@ -83,6 +90,7 @@ import numpy as np
 from .errors import FEReadError
 from .modes import Element, FEModes, number_ranges
 from .registry import Geometry, register_format
+from .uff_coords import System18, resolve_18, systems_18
 from .uff_text import DatasetSpan, fortran_field_problem, fortran_float, prepare_for_pyuff, unreadable_field
 
 __all__ = ["read_uff", "read_uff_geometry", "sniff_uff"]
@@ -287,6 +295,9 @@ class _Parts:
         self.units_given = False
         self.modes: list[dict] = []
         self.history: list[str] = []
+        #: per node (order of ``node_ids``), the columns of its displacement system's unit vectors in the global
+        #: system, where a node's displacements are given in a local system of dataset 18; else None
+        self.frames: np.ndarray | None = None
 
 
 def _spans(data: bytes, frames) -> list[DatasetSpan]:
@@ -334,9 +345,10 @@ def _read_parts_with(path: str, readable: str, data: bytes, frames, *, want_mode
     element_sets: list[tuple[bytes, int]] = []
     systems: dict[int, tuple[int, str, np.ndarray]] = {}
     system_lines: dict[int, int] = {}  # label -> line of the 2420 dataset that defines it
+    systems18: dict[int, System18] = {}
     units_line: int | None = None      # line of the first 164 (the one in force) ...
     units_said = ""                    # ... and its units, as an error message quotes them
-    wanted = {15, 164, 2411, 2412, 2420} | ({55, 2414} if want_modes else set())
+    wanted = {15, 18, 164, 2411, 2412, 2420} | ({55, 2414} if want_modes else set())
     ignored: dict[int, int] = {}
     for k, (kind, line) in enumerate(zip(types.tolist(), start_lines)):
         if kind <= 0:
@@ -387,6 +399,15 @@ def _read_parts_with(path: str, readable: str, data: bytes, frames, *, want_mode
             node_chunks.append(_nodes(path, dset, kind, line))
         elif kind == 2420:
             _add_systems(path, systems, system_lines, _coordinate_systems(path, dset, line), line)
+        elif kind == 18:
+            for cs in systems_18(path, dset, line):
+                old = systems18.setdefault(cs.label, cs)
+                if old is not cs and not (old.kind == cs.kind and old.reference == cs.reference and all(
+                        np.allclose(a, b, rtol=1e-12, atol=0.0) for a, b in
+                        ((old.origin, cs.origin), (old.x_point, cs.x_point), (old.xz_point, cs.xz_point)))):
+                    raise FEReadError(path, f"coordinate system {cs.label} is already defined by dataset 18 at line "
+                                      f"{old.line} and is defined again here differently; which one holds cannot "
+                                      "be told: keep one", dataset="18", line=line)
         else:
             parts.modes.append(_mode(path, dset, line, len(parts.modes) + 1))
     _check_mode_numbers(path, parts.modes)
@@ -410,8 +431,9 @@ def _read_parts_with(path: str, readable: str, data: bytes, frames, *, want_mode
         if np.any(counts > 1):
             raise FEReadError(path, f"node label(s) defined more than once: {uniq[counts > 1][:10].tolist()}",
                               dataset="2411", line=node_chunks[0][2])
-        _check_node_systems(path, ids, np.concatenate([c[3] for c in node_chunks]), systems, node_chunks[0][2],
-                            float(np.abs(xyz).max()))
+        xyz, parts.frames, notes = _node_systems(path, ids, np.concatenate([c[3] for c in node_chunks]), xyz,
+                                                 systems, systems18, node_chunks[0][2])
+        parts.history.extend(notes)
         parts.node_ids, parts.xyz, parts.node_line = ids, xyz / parts.length_factor, node_chunks[0][2]
         if parts.length_factor != 1.0:
             parts.history.append(f"coordinates divided by the file's length factor {parts.length_factor:g} (to m)")
@@ -513,36 +535,94 @@ def _show_system(typ: int, m: np.ndarray) -> str:
     return f"{_CS_TYPES.get(typ, f'type {typ}')}, rotation {m[:3].tolist()}, origin {m[3].tolist()}"
 
 
-def _check_node_systems(path, node_ids, node_cs, systems, line, scale: float) -> None:
-    """Nodes must be given in the global Cartesian system (coordinates and displacements).
+def _node_systems(path, node_ids, node_cs, xyz, systems, systems18, line
+                  ) -> tuple[np.ndarray, np.ndarray | None, list[str]]:
+    """Nodes' coordinates in the global system, and the frames of their displacement components.
 
     Labels 0 and 1 are the global system in the exporters' convention. A system that dataset 2420 defines as
     Cartesian with the identity rotation at the origin is the global one under another label. Any other system
-    is refused: taking its coordinates or mode shapes as global would build a wrong geometry and wrong MACs.
-    A label that no 2420 dataset defines cannot be checked: logged as taken to be global.
+    of 2420 is refused: the format does not say which way its matrix maps (its exporters differ), and taking its
+    coordinates or mode shapes as global would build a wrong geometry and wrong MACs. The systems of dataset 18
+    are defined by three points and are used (:mod:`fem_import.uff_coords`): Cartesian definition systems,
+    Cartesian and cylindrical displacement systems. A label that neither defines cannot be checked: logged as
+    taken to be global.
+
+    Returns
+    -------
+    xyz : ndarray (n, 3)
+        Global coordinates (the file's length unit).
+    frames : ndarray (n, 3, 3) or None
+        Columns: the global unit vectors of each node's displacement components (None: all global).
+    notes : list of str
+        What was converted, for the model's history.
     """
+    tol = 1e-9 * max(float(np.abs(xyz).max()), 1.0)
+    both = sorted(set(systems) & set(systems18))
+    if both:
+        raise FEReadError(path, f"coordinate system(s) {both} are defined by both dataset 2420 and dataset 18; "
+                          "which one holds cannot be told: keep one", dataset="18", line=systems18[both[0]].line)
+
+    def global_2420(lab) -> bool:
+        typ, _, m = systems[lab]
+        return typ == 0 and np.allclose(m[:3], np.eye(3), rtol=0.0, atol=1e-9) and bool(np.all(np.abs(m[3]) <= tol))
+
+    global_labels = {lab for lab in systems if global_2420(lab)} | {lab for lab in (0, 1) if lab not in systems}
+    resolved = resolve_18(path, systems18, global_labels) if systems18 else {}
     undefined = []
-    tol = 1e-9 * max(scale, 1.0)
     for lab in np.unique(node_cs):
-        if lab <= 1 and lab not in systems:
+        if lab in global_labels or lab in resolved:
             continue
         if lab not in systems:
             undefined.append(int(lab))
             continue
         typ, name, m = systems[lab]
-        if typ == 0 and np.allclose(m[:3], np.eye(3), rtol=0.0, atol=1e-9) and np.all(np.abs(m[3]) <= tol):
-            continue
         rows = np.any(node_cs == lab, axis=1)
-        used = node_ids[rows]
-        which = "coordinates and displacements" if np.all(node_cs[rows] == lab) else "coordinates or displacements"
-        raise FEReadError(path, f"{used.size} node(s) ({_ranges(used.tolist()[:50])}{', ...' if used.size > 50 else ''}"
-                          f") give their {which} in coordinate system {int(lab)} ({_CS_TYPES.get(typ, f'type {typ}')}"
+        raise FEReadError(path, f"{_nodes_in(node_ids[rows])} give their {_which(node_cs[rows], lab)} in "
+                          f"coordinate system {int(lab)} ({_CS_TYPES.get(typ, f'type {typ}')}"
                           f"{', ' + repr(name.strip()) if name.strip() else ''}; dataset 2420: origin "
-                          f"{m[3].tolist()}, not the global system); this reader takes nodes and mode shapes in the "
-                          "global Cartesian system only: export them in the global system", dataset="2411", line=line)
+                          f"{m[3].tolist()}, not the global system); this reader takes the systems of dataset "
+                          "2420 as the global one only: export the nodes and mode shapes in the global system "
+                          "(or define the system by a dataset 18)", dataset="2411", line=line)
     if undefined:
-        log.warning("%s: nodes use coordinate systems %s that no dataset 2420 defines; they are taken as the global "
-                    "system", path, undefined)
+        log.warning("%s: nodes use coordinate systems %s that no dataset 2420 or 18 defines; they are taken as the "
+                    "global system", path, undefined)
+    out, frames, notes = np.array(xyz, float), None, []
+    for lab, cs in resolved.items():
+        rows = node_cs[:, 0] == lab
+        if not rows.any():
+            continue
+        if cs.kind != "R":
+            raise FEReadError(path, f"{_nodes_in(node_ids[rows])} give their coordinates in "
+                              f"{systems18[lab].describe()}: the format does not state the unit of a curvilinear "
+                              "system's angles; export the coordinates in a Cartesian system (the displacements "
+                              "may stay cylindrical)", dataset="2411", line=line)
+        out[rows] = cs.origin + xyz[rows] @ cs.axes.T
+        notes.append(f"coordinates of {int(rows.sum())} node(s) converted from {systems18[lab].describe()} to "
+                     "the global system")
+    for lab, cs in resolved.items():
+        rows = np.flatnonzero(node_cs[:, 1] == lab)
+        if not rows.size:
+            continue
+        if cs.kind == "S":
+            raise FEReadError(path, f"{_nodes_in(node_ids[rows])} give their displacements in "
+                              f"{systems18[lab].describe()}: the order of a spherical system's components differs "
+                              "between exporters; export them in a Cartesian or cylindrical system",
+                              dataset="2411", line=line)
+        if frames is None:
+            frames = np.tile(np.eye(3), (node_ids.size, 1, 1))
+        for i in rows:
+            frames[i] = cs.frame_at(out[i])
+        notes.append(f"displacements of {rows.size} node(s) turned from {systems18[lab].describe()} to the global "
+                     "system")
+    return out, frames, notes
+
+
+def _nodes_in(ids: np.ndarray) -> str:
+    return f"{ids.size} node(s) ({_ranges(ids.tolist()[:50])}{', ...' if ids.size > 50 else ''})"
+
+
+def _which(cs_rows: np.ndarray, lab) -> str:
+    return "coordinates and displacements" if np.all(cs_rows == lab) else "coordinates or displacements"
 
 
 def _check_mode_numbers(path, modes: list[dict]) -> None:
@@ -795,6 +875,12 @@ def read_uff(path: str) -> FEModes:
         order = np.argsort(md["ids"], kind="stable")
         pos = np.searchsorted(md["ids"], node_ids, sorter=order)
         shapes[j] = md["vals"][order[pos]]
+    if parts.frames is not None:
+        # components in each node's displacement system -> global; rotations turn like translations
+        fr = parts.frames[keep]
+        for a in range(0, n_dof, 3):
+            shapes[:, :, a:a + 3] = np.einsum("nij,mnj->mni", fr, shapes[:, :, a:a + 3])
+        history.append("mode shapes turned from the nodes' displacement systems (dataset 18) to the global system")
     freqs = np.array([md["freq"] for md in parts.modes])
     if np.any(freqs < 0):
         neg = np.flatnonzero(freqs < 0)
