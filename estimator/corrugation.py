@@ -38,7 +38,7 @@ from receptance.track import pinned_pinned_frequency
 from receptance.transfer import half_wheelset_transfer
 
 __all__ = ["Resonances", "model_resonances", "classify", "TABLE_1_1", "dominant_wavelength", "spectral_peak",
-           "MIN_PROMINENCE_DB"]
+           "MIN_PROMINENCE_DB", "wheelset_agreement", "CURVE_DISAGREEMENT_HINT"]
 
 #: thesis Table 1.1: type, mechanism, typical frequency range [Hz], damage mechanism
 TABLE_1_1 = (
@@ -171,3 +171,42 @@ def dominant_wavelength(profile: np.ndarray, dx: float, band_mm: tuple[float, fl
 
 def table_1_1() -> pd.DataFrame:
     return pd.DataFrame(TABLE_1_1, columns=["type", "mechanism", "typical_hz", "damage"])
+
+
+#: why the two wheelsets may disagree on a curve, and what calibrates it
+CURVE_DISAGREEMENT_HINT = ("in a curve the leading wheelset's contact angles are the first suspect: calibrate them "
+                           "with 'railmodal field diagnose' at a trolley-measured site")
+
+
+def wheelset_agreement(corrugation: pd.DataFrame, model: str) -> pd.DataFrame:
+    """The corrugated stretches the leading wheelset finds (one per rail and band: its most prominent spectral
+    peak), each with what the trailing wheelset, a second and independent estimate of the same rail, says.
+
+    Parameters
+    ----------
+    corrugation : DataFrame
+        :attr:`FieldEstimate.corrugation` (``role, model, stretch, rail, band_mm, median_pk_pk_um,
+        peak_prominence_db``, ...).
+    model : str
+        The transfer-function model to read.
+
+    Returns
+    -------
+    DataFrame
+        The leading wheelset's rows (sorted by rail and band) with ``trailing_pk_pk_um`` (NaN where the trailing
+        wheelset is not above the threshold there), ``agree`` and ``note`` (empty, or why they may disagree: on a
+        curve, :data:`CURVE_DISAGREEMENT_HINT`; stretch names ``curve <id>`` are :mod:`estimator.workflow`'s).
+    """
+    c = corrugation
+    cols = list(c.columns) + ["trailing_pk_pk_um", "agree", "note"]
+    if c.empty:
+        return pd.DataFrame(columns=cols)
+    lead = c[(c["role"] == "leading") & (c["model"] == model) & (c["peak_prominence_db"] >= MIN_PROMINENCE_DB)]
+    best = lead.sort_values("peak_prominence_db", ascending=False).drop_duplicates(["rail", "band_mm"])
+    trail = c[(c["role"] == "trailing") & (c["model"] == model)][["stretch", "rail", "band_mm", "median_pk_pk_um"]]
+    out = best.merge(trail.rename(columns={"median_pk_pk_um": "trailing_pk_pk_um"}).drop_duplicates(
+        ["stretch", "rail", "band_mm"]), on=["stretch", "rail", "band_mm"], how="left")
+    out["agree"] = out["trailing_pk_pk_um"].notna()
+    on_curve = out["stretch"].astype(str).str.startswith("curve ")
+    out["note"] = np.where(~out["agree"] & on_curve, CURVE_DISAGREEMENT_HINT, "")
+    return out.sort_values(["rail", "band_mm"]).reset_index(drop=True)[cols]

@@ -155,6 +155,11 @@ def write_report(estimate, path, *, figures: Mapping[str, Path] | None = None,
               "<p>Dominant wavelength of each corrugated stretch (median band peak-to-peak above the threshold), its "
               "speed and frequency f = v/λ (thesis eq. 1.1) against the model's resonances (thesis Table 1.1).</p>",
               _table(e.resonances), _table(e.corrugation, 60)]
+    split = _wheelset_disagreements(e)
+    if split:
+        parts.append("<div class='box warn'><b>Found by the leading wheelset only</b> (the trailing wheelset, a "
+                     "second estimate of the same rail, is not above the threshold there):<br>"
+                     + "<br>".join(_e(x) for x in split) + "</div>")
     # 9
     wo = e.wheel_orders()
     parts += [f"<h2>{SECTION_TITLES[8]}</h2>",
@@ -175,6 +180,17 @@ def write_report(estimate, path, *, figures: Mapping[str, Path] | None = None,
     out = Path(path)
     out.write_text(page(f"Field estimate {e.run_id}", parts), encoding="utf-8")
     return out
+
+
+def _wheelset_disagreements(e) -> list[str]:
+    """Lines for the corrugated stretches only the leading wheelset finds (:func:`estimator.corrugation.wheelset_agreement`)."""
+    from estimator.corrugation import wheelset_agreement
+
+    if e.corrugation.empty or not e.models:
+        return []
+    a = wheelset_agreement(e.corrugation, e.models[-1])
+    return [f"{r.stretch}, rail {r.rail}, {r.band_mm} mm: {r.median_pk_pk_um:.1f} µm pk-pk"
+            + (f" — {r.note}" if r.note else "") for r in a[~a["agree"]].itertuples()]
 
 
 def _band_cautions(e) -> list[str]:

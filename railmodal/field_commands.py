@@ -39,27 +39,19 @@ def summarise_estimate(est, files: dict | None = None) -> list[str]:
         lines.append(f"not estimated: {s}")
     c = est.corrugation
     if not c.empty:
-        from estimator.corrugation import MIN_PROMINENCE_DB
+        from estimator.corrugation import wheelset_agreement
 
         model = est.models[-1] if est.models else ""
-        lead = c[(c["role"] == "leading") & (c["model"] == model)]
-        trail = c[(c["role"] == "trailing") & (c["model"] == model)]
-        peaked = lead[lead["peak_prominence_db"] >= MIN_PROMINENCE_DB]
         # one line per rail and band: the stretch whose spectral peak stands out most (the rest: corrugation.csv)
-        best = peaked.sort_values("peak_prominence_db", ascending=False).drop_duplicates(["rail", "band_mm"])
-        for r in best.sort_values(["rail", "band_mm"]).itertuples():
-            # the trailing wheelset is a second, independent estimate of the same rail: say whether it agrees
-            t = trail[(trail["stretch"] == r.stretch) & (trail["rail"] == r.rail) & (trail["band_mm"] == r.band_mm)]
-            second = (f"trailing wheelset {t['median_pk_pk_um'].iloc[0]:.1f} um" if len(t) else
-                      "NOT above the threshold on the trailing wheelset: the two estimates disagree")
-            if not len(t) and str(r.stretch).startswith("curve "):  # estimator.workflow names curve stretches so
-                # in a curve the two wheelsets' contact geometry differs (the bogie's yaw pushes the leading one
-                # towards its flange) and the default curving does not know it
-                second += ("; in a curve the leading wheelset's contact angles are the first suspect: calibrate them "
-                           "with 'railmodal field diagnose' at a trolley-measured site")
+        best = wheelset_agreement(c, model)
+        for r in best.itertuples():
+            second = (f"trailing wheelset {r.trailing_pk_pk_um:.1f} um" if r.agree else
+                      "NOT above the threshold on the trailing wheelset: the two estimates disagree"
+                      + (f"; {r.note}" if r.note else ""))
             lines.append(f"corrugated: {r.stretch}, rail {r.rail}, {r.band_mm} mm: {r.median_pk_pk_um:.1f} um pk-pk "
                          f"({second}), lambda {r.dominant_wavelength_mm:.0f} mm at {r.speed_m_s:.1f} m/s = "
                          f"{r.frequency_hz:.0f} Hz -> {r.mechanism}")
+        lead = c[(c["role"] == "leading") & (c["model"] == model)]
         rest = len(lead) - len(best)
         if rest:
             lines.append(f"{rest} more stretch(es) above the EN 13231-3 thresholds (broadband or repeated): "

@@ -133,6 +133,11 @@ def test_the_summary_says_whether_the_trailing_wheelset_agrees():
     assert "rail L" in lines[0] and "NOT above the threshold on the trailing wheelset" in lines[0]
     assert "contact angles are the first suspect" in lines[0] and "field diagnose" in lines[0]  # a curve
     assert "rail R" in lines[1] and "trailing wheelset 21.9 um" in lines[1] and "suspect" not in lines[1]
+    # the report's corrugation section lists the same stretch with the same note
+    from estimator.report import _wheelset_disagreements
+
+    split = _wheelset_disagreements(est)
+    assert len(split) == 1 and split[0].startswith("curve C1, rail L, 30-100 mm: 11.4") and "field diagnose" in split[0]
     # on a straight the disagreement is stated without the curve's suspect
     straight = corr.assign(stretch="section straight_1")
     lines = [ln for ln in summarise_estimate(SimpleNamespace(**{**vars(est), "corrugation": straight}))
