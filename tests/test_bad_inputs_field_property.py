@@ -25,7 +25,7 @@ from bad_inputs_support import run
 
 pytestmark = pytest.mark.slow
 
-SETTINGS = dict(derandomize=True, deadline=None, max_examples=int(__import__("os").environ.get("FIELD_PROP_EXAMPLES", 15)),
+SETTINGS = dict(derandomize=True, deadline=None, max_examples=int(__import__("os").environ.get("FIELD_PROP_EXAMPLES", 10)),
                 suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 CHARACTERS = string.printable
 
