@@ -49,7 +49,7 @@ def field(tmp_path_factory):
     return d, {k: p.read_bytes() for k, p in files.items()}, {k: p.suffix for k, p in files.items()}
 
 
-def _estimate(field, tmp_path, fmt: str, data: bytes, capsys):
+def _assert_estimated_or_named(field, tmp_path, fmt: str, data: bytes, capsys):
     d, _, suffix = field
     path = tmp_path / f"mutated{suffix[fmt]}"
     path.write_bytes(data)
@@ -83,16 +83,16 @@ def test_a_mutated_mdf4_run_is_estimated_or_named(field, tmp_path_factory, capsy
         mutated = clean[:i] + bytes([clean[i] ^ data.draw(st.integers(1, 255))]) + clean[i + 1:]
     else:
         mutated = clean[:data.draw(st.integers(0, len(clean) - 1))]
-    _estimate(field, tmp_path_factory.mktemp("mdf4"), "mdf4", mutated, capsys)
+    _assert_estimated_or_named(field, tmp_path_factory.mktemp("mdf4"), "mdf4", mutated, capsys)
 
 
 @settings(**SETTINGS)
 @given(data=st.data())
 def test_a_mutated_long_csv_run_is_estimated_or_named(field, tmp_path_factory, capsys, data):
-    _estimate(field, tmp_path_factory.mktemp("csv"), "csv", _mutated_text(field[1]["csv"], data), capsys)
+    _assert_estimated_or_named(field, tmp_path_factory.mktemp("csv"), "csv", _mutated_text(field[1]["csv"], data), capsys)
 
 
 @settings(**SETTINGS)
 @given(data=st.data())
 def test_a_mutated_wide_csv_run_is_estimated_or_named(field, tmp_path_factory, capsys, data):
-    _estimate(field, tmp_path_factory.mktemp("wide"), "csv-wide", _mutated_text(field[1]["csv-wide"], data), capsys)
+    _assert_estimated_or_named(field, tmp_path_factory.mktemp("wide"), "csv-wide", _mutated_text(field[1]["csv-wide"], data), capsys)
