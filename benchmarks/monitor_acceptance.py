@@ -60,16 +60,11 @@ def _say(*a):
 
 def _line_file(camp, work: Path, loss_reference_hz: float | None) -> Path:
     """The campaign's line.json, or a copy whose trackforms state the frequency their pads' stiffness holds at."""
-    import json
+    from line_laws import line_with_loss_reference
 
     if loss_reference_hz is None:
         return camp / "line.json"
-    d = json.loads((camp / "line.json").read_text())
-    for t in d["trackform_sections"]:
-        t["loss_reference_hz"] = float(loss_reference_hz)
-    out = work / f"line_loss_reference_{loss_reference_hz:g}Hz.json"
-    out.write_text(json.dumps(d, indent=1))
-    return out
+    return line_with_loss_reference(camp, work, loss_reference_hz)
 
 
 def _track_model(loss_reference_hz: float | None) -> str:

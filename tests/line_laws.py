@@ -34,15 +34,20 @@ def line_loss_reference_hz() -> float:
     return float(f[np.argmin(np.abs(g.real))])
 
 
-def line_with_causal_layers(d, out: Path) -> Path:
-    """A copy of campaign ``d``'s ``line.json`` in folder ``out`` whose trackforms carry the line's own loss law."""
+def line_with_loss_reference(d, out: Path, reference_hz: float) -> Path:
+    """A copy of campaign ``d``'s ``line.json`` in folder ``out`` whose trackforms state the frequency their layers'
+    stiffness holds at (the causal loss law, ``loss_reference_hz``)."""
     doc = json.loads((Path(d) / "line.json").read_text())
-    ref = line_loss_reference_hz()
     for section in doc["trackform_sections"]:
-        section["loss_reference_hz"] = ref
-    path = Path(out) / "line_causal_layers.json"
+        section["loss_reference_hz"] = float(reference_hz)
+    path = Path(out) / f"line_loss_reference_{reference_hz:g}Hz.json"
     path.write_text(json.dumps(doc, indent=1))
     return path
+
+
+def line_with_causal_layers(d, out: Path) -> Path:
+    """A copy of campaign ``d``'s ``line.json`` in folder ``out`` whose trackforms carry the line's own loss law."""
+    return line_with_loss_reference(d, out, line_loss_reference_hz())
 
 
 def curve_c1_angles(d, day: int = 1) -> dict:
