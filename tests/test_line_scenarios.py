@@ -3,7 +3,12 @@
 Every scenario's short campaign (one forward run over the first curve,
 same seed) is compared with ``nominal``'s: everything but the effect is the
 same realisation (rails, wheels, speed, sensor noise), so the difference of
-the recorded channels isolates the effect. Oracles: the truth manifest's
+the recorded channels isolates the effect. Not bit for bit: the contact
+kernel's vectorised sums round differently in another process (the arrays'
+alignment), and the Newton iteration's stop amplifies that to a few ADC
+counts (measured: 1.1 LSB RMS, 5 LSB at most, on channels an effect does not
+touch; the effects move their channels by 10^3 to 10^4 LSB RMS), so
+untouched channels are compared to 1 % of the sensor noise. Oracles: the truth manifest's
 parameters (where the effect is, which channel, which polygon order) and
 kinematics (a polygon of order n on a wheel of radius r excites
 ``n v / (2 π r)``).
@@ -43,6 +48,15 @@ def rms(x):
     return float(np.sqrt(np.mean(np.square(x))))
 
 
+def assert_untouched(truth, data, ref, effect_channels):
+    """Every channel but ``effect_channels`` differs from nominal's record by less than 1 % of the sensor noise RMS
+    (numerical rounding only; the effect itself is well above the noise)."""
+    noise_g = truth["daq"]["noise_rms"] / 9.80665
+    for n in ACC:
+        if n not in effect_channels:
+            assert rms(data[n] - ref[n]) < 0.01 * noise_g, n
+
+
 def test_lateral_sign_flips_one_channel_only(nominal):
     truth, data, _ = load("lateral_sign")
     assert truth["scenario"]["sign_flips"] == ["ACC_W1L_Y"]
@@ -54,9 +68,7 @@ def test_lateral_sign_flips_one_channel_only(nominal):
     assert rms(flipped + plain) == pytest.approx(2 * 0.03, rel=0.1)
     assert rms(plain - flipped) / 2 > 2 * 0.03  # the lateral signal is ~0.11 m/s^2 RMS here
     assert np.corrcoef(flipped, plain)[0, 1] < -0.5
-    for n in ACC:
-        if n != "ACC_W1L_Y":
-            assert np.array_equal(data[n], ref[n])
+    assert_untouched(truth, data, ref, {"ACC_W1L_Y"})
 
 
 def test_sensor_offset_changes_that_accelerometer_only(nominal):
@@ -65,10 +77,8 @@ def test_sensor_offset_changes_that_accelerometer_only(nominal):
     assert moved["offset_m"] == pytest.approx([0.0, -0.040, 0.0])
     _, ref, _ = nominal
     diff = rms(data["ACC_W1L_Z"] - ref["ACC_W1L_Z"])
-    assert diff > 20 * 2 ** -23 * 50  # far above the quantisation step
-    for n in ACC:
-        if n != "ACC_W1L_Z":
-            assert np.array_equal(data[n], ref[n])
+    assert diff > 20 * truth["runs"][0]["daq"]["ACC_W1L_Z"]["lsb_g"]  # far above the quantisation step
+    assert_untouched(truth, data, ref, {"ACC_W1L_Z"})
 
 
 def test_wheel_polygon_shows_at_its_order(nominal):
