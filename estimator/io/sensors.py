@@ -195,7 +195,9 @@ def check_sensors(df: pd.DataFrame, source: str = "<sensor table>") -> pd.DataFr
         if is_acc[i]:
             if ws.iloc[i] not in (1, 2):
                 raise SensorTableError(f"{source}: row {i + 2} ({df['name'].iloc[i]!r}): wheelset must be 1 or 2 for "
-                                       f"an acceleration, got {_show(df['wheelset'].iloc[i])}")
+                                       f"an acceleration, got {_show(df['wheelset'].iloc[i])} (the instrumented "
+                                       f"bogie's two wheelsets, 1 at the car's front end: a vehicle's axles 3 and 4 "
+                                       f"are 1 and 2 here)")
         elif not _blank(df["wheelset"].iloc[i]) and ws.iloc[i] not in (0, 1, 2):
             # a speed, position or balise channel belongs to no wheelset: a value there is a slip (a shifted row)
             raise SensorTableError(f"{source}: row {i + 2} ({df['name'].iloc[i]!r}): wheelset of a "
