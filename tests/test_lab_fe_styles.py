@@ -308,10 +308,10 @@ def test_channel_tables_attach_each_sensor_to_the_node_of_its_body(beam_dir, bea
 
 def test_the_hammer_data_do_not_depend_on_the_export_style(beam_dir):
     """The same records whichever style the FE is exported in, to one count of the campaign's ADC. Not bit for bit:
-    two campaigns generated in processes with other BLAS thread counts differ by rounding in the float64 sums before
-    the ADC, which moves up to 1.3 % of a record's samples to the next count (measured on the torsional setup's
-    axle-end channel). Any difference of the physics (another shape, mass or damping behind a channel) is orders of
-    magnitude above one count of a 24-bit ADC."""
+    two campaigns generated in different processes (e.g. other BLAS thread counts) differ by rounding in the
+    float64 sums before the ADC, which moved up to 1.3 % of a record's samples to the next count (CI, torsional
+    setup, axle-end channel). Any difference of the physics (another shape, mass or damping behind a channel) is
+    orders of magnitude above one count of a 24-bit ADC."""
     mesh_dir = campaign_dir("control", fe_export_hz=EXPORT_HZ)
     manifest = json.loads((mesh_dir / "truth.json").read_text())
     for name in ("flexural", "torsional"):

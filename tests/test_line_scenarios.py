@@ -3,12 +3,13 @@
 Every scenario's short campaign (one forward run over the first curve,
 same seed) is compared with ``nominal``'s: everything but the effect is the
 same realisation (rails, wheels, speed, sensor noise), so the difference of
-the recorded channels isolates the effect. Not bit for bit: the contact
-kernel's vectorised sums round differently in another process (the arrays'
-alignment), and the Newton iteration's stop amplifies that to a few ADC
-counts (measured: 1.1 LSB RMS, 5 LSB at most, on channels an effect does not
-touch; the effects move their channels by 10^3 to 10^4 LSB RMS), so
-untouched channels are compared to 1 % of the sensor noise. Oracles: the truth manifest's
+the recorded channels isolates the effect. Not bit for bit: two campaigns
+generated in different processes differ by rounding (the time-stepping
+kernel is compiled with fast-math vectorised sums), which the non-linear
+time stepping carries to a few ADC counts (measured: 1.1 LSB RMS and
+5 LSB at most on the channels an effect does not touch; the effects move
+their channels by 10^3 to 10^4 LSB RMS). So the untouched channels are
+compared to 1 % of the sensor noise. Oracles: the truth manifest's
 parameters (where the effect is, which channel, which polygon order) and
 kinematics (a polygon of order n on a wheel of radius r excites
 ``n v / (2 π r)``).
