@@ -5,6 +5,8 @@ The command validates every argument and input before any work, calls
 :func:`estimator.diagnosis.report.write_field_diagnosis`, and writes its
 results only when everything succeeded (temporary folder, then rename):
 ``field_diagnosis.json``, ``report.html``, figures and ``calibrated_model/``.
+With ``--calibration`` (a previous ``calibrated_model/`` made for the same
+``--model``) the diagnosis starts from that calibration.
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from railmodal.arguments import bounded_float, bounded_int, existing_file, output_folder
+from railmodal.arguments import bounded_float, bounded_int, calibration_path, existing_file, output_folder
 
 __all__ = ["add_field_diagnose_command", "MAX_RUN_FILES"]
 
@@ -56,11 +58,17 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     ecfg = EstimatorConfig(wheelbase_m=args.wheelbase, wheel_radius_m=args.wheel_radius)
     trackform = load_trackform(args.trackform) if args.trackform else None
     say = (lambda m: None) if args.quiet else (lambda m: print(f"  … {m}", file=sys.stderr, flush=True))
+    start = None
+    if args.calibration:
+        from estimator.diagnosis.calibration import calibration_for_model
+
+        start, _ = calibration_for_model(args.calibration, args.model)
+        say(f"starting from the calibration {args.calibration}: {start.summary()}")
     say(f"estimating {len(args.runs)} run(s), building the evidence, fitting the catalogue")
     res = run_field_diagnosis(list(args.runs), list(args.reference), (lo, hi), args.model, args.sensors,
                               line=args.line, trackform=trackform, config=cfg, estimator_config=ecfg,
                               calibration_date=args.calibration_date,
-                              direction=args.direction, validation_stretches=stretches)
+                              direction=args.direction, validation_stretches=stretches, start=start)
     with staged_output(args.out) as tmp:
         files = write_field_diagnosis(res, tmp, model_file=args.model)
     d = res.diagnosis
@@ -108,6 +116,10 @@ def add_field_diagnose_command(sub) -> None:
                    help="nominal (e.g. measured, worn) wheel rolling radius [m] for the circumference search, the "
                         "contact angles and the Hertz contact (default: the model's, its contact points' distance "
                         "from the axle)")
+    p.add_argument("--calibration", default=None, type=calibration_path, metavar="DIR",
+                   help="a previous 'field diagnose' calibrated_model/ folder made with the same --model: the runs "
+                        "are estimated with it and the search adds effects on top of it (diagnose what changed "
+                        "since the line was calibrated)")
     p.add_argument("--effects", default=None,
                    help="catalogue effects to try, comma separated (default: all)")
     p.add_argument("--max-effects", default=3, type=bounded_int("--max-effects", 0, 6))

@@ -524,7 +524,8 @@ def test_a_faster_daq_gives_the_same_bands_and_resolves_shorter_wavelengths(tmp_
     sr = make_run(tmp_path, model, duration_s=45, fs=2560.0, name="fast")
     est = estimate_run(sr.path, prepare(model, sensor_table(), config=EstimatorConfig()))
     assert est.band_hz == pytest.approx((10.0, 1024.0))
-    assert est.lambda_min_m == pytest.approx(3.0 / 1024.0, rel=0.01)  # the speed gate's wavelength at this rate
+    gate = EstimatorConfig().speed_gate_m_s
+    assert est.lambda_min_m == pytest.approx(gate / 1024.0, rel=0.01)  # the speed gate's wavelength at this rate
     errors = []
     for s, e in ((sr_1k, est_1k), (sr, est)):
         c = compare_bands(e, _truth_reference(s), (110, 290), bands=[(10.0, 30.0), (30.0, 100.0), (100.0, 300.0)])
@@ -557,7 +558,7 @@ def test_spatial_step_follows_the_runs_slowest_kept_speed(tmp_path):
     v_lo, v_hi = v[(t >= 8.0) & (t <= 32.0)].min(), v[(t >= 9.0) & (t <= 31.0)].min()
     f_hi = est.band_hz[1]
     assert v_lo / f_hi * 0.999 <= est.lambda_min_m <= v_hi / f_hi * 1.001
-    assert est.lambda_min_m > 2.5 * 3.0 / f_hi  # well above the speed gate's 7.5 mm
+    assert est.lambda_min_m > 2.5 * EstimatorConfig().speed_gate_m_s / f_hi  # well above the speed gate's 7.5 mm
     for dx in est.dx_m.values():
         # a step of the 1-2-2.5-5 series (neighbours at most 2x apart) below λ_min/3, coarser than the gate's 2.5 mm
         assert est.lambda_min_m / 6.05 < dx <= est.lambda_min_m / 3 and dx > 0.0025 * 1.5

@@ -100,3 +100,59 @@ def test_calibration_file_round_trip_and_refusals(tmp_path, campaign):
     p.write_text(json.dumps(d))
     with pytest.raises(CalibrationFileError, match="format version 99"):
         load_calibration(tmp_path / "cal")
+
+
+@pytest.mark.slow
+def test_field_diagnose_from_a_wrong_calibration_corrects_it(campaign, capsys):
+    """``--calibration``: the search starts from a previous calibration. Oracle: the runs are nominal, and the
+    calibration says ACC_W1L_Z sits 80 mm outboard (wrong); the runs are estimated with it, the ``nominal`` stage
+    is that calibration's, and the diagnosis moves that channel's offset back towards its true 0; the error
+    falls, and the calibrated model saved holds the correction, not the wrong value.
+
+    Measured: E 7.48 → 6.38 dB (ΔBIC −177), dy −24 mm. This short site (E 6.4 dB with the true mounting, floor
+    3.4 dB) resolves a vertical channel's offset to a few centimetres: from a −80 mm start the same channel's fit
+    ends at −24 mm too (measured). The tolerance is that resolution; the virtual line's test
+    (``test_field_diagnosis_line``) holds the offset's physics."""
+    from estimator.diagnosis import FieldState, load_calibration, save_calibration
+
+    tmp, model, runs, ref = campaign
+    wrong = FieldState().with_sensor_offset("ACC_W1L_Z", 0.0, 0.08, 0.0)
+    save_calibration(tmp / "wrong_cal", model, wrong, site=(96, 216), date="2025-12-01")
+    out = tmp / "diag_from_cal"
+    code = main(["field", "diagnose", "--runs", *map(str, runs), "--reference", str(ref), "--site", "96", "216",
+                 "--model", str(model), "--sensors", str(tmp / "sensors.csv"), "--effects", "sensor_offset",
+                 "--workers", "2", "--calibration", str(tmp / "wrong_cal"), "--out", str(out)])
+    text = capsys.readouterr()
+    assert code == 0, text.err
+    doc = json.loads((out / "field_diagnosis.json").read_text())
+    assert doc["starting_state"]["sensor_offsets"][0]["dy_mm"] == pytest.approx(80.0)
+    (acc,) = doc["accepted"]
+    assert acc["effect"] == "sensor_offset" and "ACC_W1L_Z" in acc["label"], doc["verdict"]
+    assert abs(acc["parameters"]["dy"]) < 0.03, acc["parameters"]
+    e = {r["stage"]: r["error_db"] for r in doc["errors"] if r["set"] == "calibration"}
+    assert e[next(s for s in e if s != "nominal")] < 0.9 * e["nominal"], e
+    # the model's error under the wrong calibration is the worse one: the band-index error falls through the estimator
+    idx = pd.DataFrame(doc["band_index_errors"]).query("set == 'calibration'")
+    rms = {s: float(np.sqrt((g["rms_error_db"] ** 2 * g["n_windows"]).sum() / g["n_windows"].sum()))
+           for s, g in idx.groupby("stage")}
+    assert rms["calibrated"] < rms["nominal"], rms
+    state, cal = load_calibration(out / "calibrated_model")
+    (ch, dx, dy, dz), = state.sensor_offsets
+    assert ch == "ACC_W1L_Z" and abs(dy) < 0.03 and "ACC_W1L_Z moved (+0.0, +80.0" in cal["started_from"]
+    assert "Starting calibration" in (out / "report.html").read_text()
+
+
+def test_field_diagnose_refuses_a_calibration_of_another_model(campaign, tmp_path, capsys):
+    from estimator.diagnosis import FieldState, save_calibration
+
+    tmp, model, runs, ref = campaign
+    other = tmp_path / "other_model.npz"
+    other.write_bytes(model.read_bytes() + b"\0")  # another file: another hash
+    save_calibration(tmp_path / "cal", other, FieldState().with_wheel_load(60e3), site=(0, 100), date="2026-01-05")
+    out = tmp_path / "never"
+    code = main(["field", "diagnose", "--runs", str(runs[0]), "--reference", str(ref), "--site", "96", "216",
+                 "--model", str(model), "--sensors", str(tmp / "sensors.csv"), "--calibration", str(tmp_path / "cal"),
+                 "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 1 and "calibrates the model with hash" in err and "Traceback" not in err
+    assert not out.exists()

@@ -25,8 +25,8 @@ from estimator.diagnosis.errors import CalibrationFileError
 from estimator.diagnosis.state import FieldState, field_model_for
 from estimator.monitoring.records import file_hash
 
-__all__ = ["FORMAT", "FORMAT_VERSION", "save_calibration", "load_calibration", "calibrated_field_model",
-           "calibration_version"]
+__all__ = ["FORMAT", "FORMAT_VERSION", "save_calibration", "load_calibration", "calibration_for_model",
+           "calibrated_field_model", "calibration_version"]
 
 FORMAT = "railmodal-field-calibration"
 FORMAT_VERSION = 1
@@ -84,6 +84,23 @@ def load_calibration(folder) -> tuple[FieldState, dict]:
     return state, doc
 
 
+def calibration_for_model(folder, model_file) -> tuple[FieldState, dict]:
+    """:func:`load_calibration`, refused unless the calibration was made for ``model_file`` (same SHA-256).
+
+    Raises
+    ------
+    CalibrationFileError
+        Unreadable, or made for another model file (both hashes are named).
+    """
+    state, doc = load_calibration(folder)
+    mh = file_hash(Path(model_file))
+    if doc.get("model_hash") != mh:
+        raise CalibrationFileError(f"{folder}: calibrates the model with hash {doc.get('model_hash')}, not "
+                                   f"{Path(model_file).name} (hash {mh}); run 'railmodal field diagnose' with this "
+                                   f"model")
+    return state, doc
+
+
 def calibrated_field_model(fm, model_file, folder):
     """The :class:`~estimator.workflow.FieldModel` ``fm`` with the calibration of ``folder`` applied.
 
@@ -108,13 +125,8 @@ def calibrated_field_model(fm, model_file, folder):
     CalibrationFileError
         The calibration is unreadable, or was made for another model file (both hashes are named).
     """
-    state, doc = load_calibration(folder)
-    mh = file_hash(Path(model_file))
-    if doc.get("model_hash") != mh:
-        raise CalibrationFileError(f"{folder}: calibrates the model with hash {doc.get('model_hash')}, not "
-                                   f"{Path(model_file).name} (hash {mh}); run 'railmodal field diagnose' with this "
-                                   f"model")
-    version = calibration_version(mh, state)
+    state, doc = calibration_for_model(folder, model_file)
+    version = calibration_version(doc["model_hash"], state)
     site = doc.get("site_m") or ["?", "?"]
     note = (f"field calibration {version} ({folder}; site {site[0]}-{site[1]} m, "
             f"{doc.get('calibration_date', 'date not stated')}): {state.summary()}")

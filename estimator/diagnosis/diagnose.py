@@ -518,7 +518,8 @@ def diagnose_field(evaluator, candidates: list[FieldEffect], config, *, state: F
     criterion = CRITERION.format(bic=config.bic_threshold, red=100 * config.min_reduction, margin=config.noise_margin,
                                  val=100 * config.validation_min_reduction)
     rounds, accepted = [], []
-    stages = [("nominal", errs)]
+    start_state = state
+    stages = [("nominal", errs)]  # "nominal": the model the search starts from (a previous calibration, if given)
     remaining = list(candidates)
     while len(accepted) < config.max_effects and remaining:
         _PROBLEM = _Problem(evaluator, masks, state, errs, config)
@@ -551,7 +552,8 @@ def diagnose_field(evaluator, candidates: list[FieldEffect], config, *, state: F
         verdict = (f"{len(accepted)} effect(s) accepted: " + ", ".join(c.effect.label() for c in accepted)
                    + f"; calibration error {e0:.2f} → {e_end:.2f} dB (noise floor {floor:.2f} dB)")
     else:
-        verdict = f"nothing accepted: the nominal model's error {e0:.2f} dB"
+        base = "the nominal model's" if start_state.is_nominal else "the starting calibration's"
+        verdict = f"nothing accepted: {base} error {e0:.2f} dB"
     if e_end > config.noise_margin * floor:
         where = residual[residual["unexplained"]]
         loc = "; ".join(f"{r.from_m:g}-{r.to_m:g} m rail {r.rail} ({r.rms_error_db:.1f} dB)"

@@ -57,7 +57,7 @@ def diagnosis_document(res) -> dict:
         "inconsistent_channels": ([] if res.channel_check is None
                                   else res.channel_check.to_dict(orient="records")),
         "comparison": res.comparison.as_dict(),
-        "calibrated_state": res.state.as_dict(),
+        "starting_state": res.start.as_dict(), "calibrated_state": res.state.as_dict(),
         "runs": res.runs.to_dict(orient="records"), "rejected": list(res.rejected),
         "config": res.config.as_dict(), "estimator_config": res.estimator_config.as_dict(),
         "timings_s": res.timings_s})
@@ -72,6 +72,17 @@ def _meanings(accepted) -> list[str]:
     return ["<h2>What the accepted effects mean</h2>", f"<ol>{items}</ol>"]
 
 
+def _start_note(res) -> list[str]:
+    """What the search started from, when a previous calibration was given."""
+    if res.start.is_nominal:
+        return []
+    return ["<h2>Starting calibration</h2>",
+            f"<p>The runs were estimated, and the search started, with a previous calibration: "
+            f"{escape(res.start.summary())}. The stage <i>nominal</i> of every table below is that calibration; the "
+            "effects accepted here are added on top of it, and the calibrated model saved with this report holds "
+            "both.</p>"]
+
+
 def _html(res, figs: dict) -> str:
     d = res.diagnosis
     cmp_ = res.comparison
@@ -80,7 +91,9 @@ def _html(res, figs: dict) -> str:
             f"<div class='box{warn}'><b>Verdict.</b> {escape(d.verdict)}</div>",
             f"<p class='small'>Criterion: {escape(d.criterion)}</p>",
             *_meanings(d.accepted),
-            "<h2>Compare with the reference (nominal model)</h2>",
+            *_start_note(res),
+            "<h2>Compare with the reference (" + ("nominal model" if res.start.is_nominal
+                                                 else "the starting calibration") + ")</h2>",
             f"<p>Figure of merit E = {cmp_.figure_of_merit_db:.2f} dB (RMS level error of the calibration cells); "
             f"noise floor {d.noise_floor_db:.2f} dB (run-to-run scatter {d.scatter_db:.2f} dB, reference noise "
             f"{d.reference_db:.2f} dB, inversion bias {d.inversion_db:.2f} dB).</p>",
@@ -133,7 +146,8 @@ def write_field_diagnosis(res, out, model_file=None) -> dict:
     if model_file is not None:
         p = save_calibration(out / "calibrated_model", model_file, res.state, site=res.site,
                              date=res.calibration_date,
-                             extra={"accepted": [c.effect.label() for c in res.diagnosis.accepted]})
+                             extra={"accepted": [c.effect.label() for c in res.diagnosis.accepted],
+                                    "started_from": res.start.summary()})
         doc["calibrated_model"] = {"folder": "calibrated_model", "version": json.loads(p.read_text())["version"]}
         files["calibrated_model"] = p
     (out / "field_diagnosis.json").write_text(json.dumps(doc, indent=1, allow_nan=False))

@@ -5,9 +5,10 @@
 1. prepares the estimator's :class:`~estimator.workflow.FieldModel` (the
    diagnosed transfer-function model only);
 2. reads every run, estimates it (:func:`estimator.estimate_run`: the
-   wheelbase and the profiles the comparison needs) and pairs it with the
-   trolley record of its day; a run with no same-day reference is named and
-   left out;
+   wheelbase and the profiles the comparison needs; with a previous
+   calibration, ``start``, through it: the search adds effects on top of
+   it) and pairs it with the trolley record of its day; a run with no
+   same-day reference is named and left out;
 3. aligns each trolley record to the train's chainage
    (:func:`estimator.monitoring.alignment.align_profiles`, the monitoring
    layer's two-pass piecewise fit, against the day's first run);
@@ -79,6 +80,8 @@ class FieldDiagnosisResult:
     timings_s: dict = field(default_factory=dict)
     #: channels reading against the model (:func:`~estimator.diagnosis.channels.inconsistent_channels`)
     channel_check: pd.DataFrame | None = None
+    #: the calibration the search started from (``state`` holds it and what was accepted on top)
+    start: FieldState = FieldState()
 
 
 def _classes_of(fm, kind, orient, role):
@@ -136,7 +139,8 @@ def _effect_stretches(diag, line, site) -> list[tuple[float, float]]:
 def run_field_diagnosis(runs: Sequence, references: Sequence, site: tuple[float, float], model, sensors, *,
                         line=None, trackform: Trackform | None = None, config: DiagnosisConfig | None = None,
                         estimator_config: EstimatorConfig | None = None, calibration_date: str | None = None,
-                        direction: str | None = None, validation_stretches: Sequence = ()) -> FieldDiagnosisResult:
+                        direction: str | None = None, validation_stretches: Sequence = (),
+                        start: FieldState | None = None) -> FieldDiagnosisResult:
     """Diagnose the estimator's model on a calibration site (module docstring).
 
     Parameters
@@ -153,6 +157,12 @@ def run_field_diagnosis(runs: Sequence, references: Sequence, site: tuple[float,
     validation_stretches : sequence of (float, float)
         Stretches ``(from, to)`` [m] on which the EN 13231-3 band-index error of the other days is also
         reported (set ``validation stretch``), e.g. where a practitioner knows the track was re-laid.
+    start : FieldState, optional
+        A previous calibration of the same model (:func:`~estimator.diagnosis.calibration.calibration_for_model`,
+        ``railmodal field diagnose --calibration``): the runs are estimated with it, the comparison and the
+        ``nominal`` stage of every table are its, and the search adds effects on top of it (an effect of the
+        same kind and place is fitted again). A line calibrated once for its everyday physics (the curves'
+        contact angles, the track law) is diagnosed later for what changed since.
 
     Raises
     ------
@@ -184,6 +194,8 @@ def run_field_diagnosis(runs: Sequence, references: Sequence, site: tuple[float,
     timings: dict = {}
     fm = prepare(model, sensors, line=line, trackform=trackform, config=ecfg)
     ecfg = fm.config  # the nominal wheel radius resolved from the model, carried into the Hertz contact
+    start = start or FieldState()
+    fm_start = field_model_for(fm, start)
     recs = {}
     for p in references:
         rec = read_trolley_record(p)
@@ -207,7 +219,7 @@ def run_field_diagnosis(runs: Sequence, references: Sequence, site: tuple[float,
                             "not used")
             log.warning(rejected[-1])
             continue
-        est = estimate_run(run, fm)
+        est = estimate_run(run_for(run, start), fm_start)
         items.append((run, est))
     if not any(run.header.date == cal_date for run, _ in items):
         raise ReferenceCoverageError(f"no run on the calibration date {cal_date}")
@@ -291,13 +303,13 @@ def run_field_diagnosis(runs: Sequence, references: Sequence, site: tuple[float,
     # ---- compare, diagnose
     t0 = time.perf_counter()
     evaluator = Evaluator(ev, blocks, _base_trackform(fm), ecfg.contact, contact_filter=ecfg.contact_filter)
-    nominal = evaluator.errors(FieldState())
+    nominal = evaluator.errors(start)
     masks = cell_masks(ev, cfg.min_reference_snr_db)
-    floor, *_ = noise_floor(ev, nominal, masks, evaluator.inversion_floor(FieldState()))
+    floor, *_ = noise_floor(ev, nominal, masks, evaluator.inversion_floor(start))
     hot = anomalous_stretches(ev, nominal, masks, floor, cfg.noise_margin)
     cands = catalogue(ev, fm.line, pd.concat(channels, ignore_index=True), names=cfg.effects,
                       min_section_m=cfg.min_section_m, stretches=hot)
-    diag = diagnose_field(evaluator, cands, cfg)
+    diag = diagnose_field(evaluator, cands, cfg, state=start)
     timings["diagnose"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     # ---- the band-index error before/after, through the estimator itself
@@ -313,7 +325,7 @@ def run_field_diagnosis(runs: Sequence, references: Sequence, site: tuple[float,
         if is_cal:
             cal_tables.append(nominal_t)
         rows.append(nominal_t.assign(stage="nominal", run_id=run.run_id, date=run.header.date))
-        if diag.state.is_nominal:
+        if diag.state == start:
             after_t = nominal_t
         else:
             after = estimate_run(run_for(run, diag.state), fm_cal)
@@ -342,4 +354,4 @@ def run_field_diagnosis(runs: Sequence, references: Sequence, site: tuple[float,
     timings["compare"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_start
     return FieldDiagnosisResult(diag, comparison, idx_err, diag.state, (lo, hi), cal_date, pd.DataFrame(runs_rows),
-                                tuple(rejected), cfg, ecfg, timings, bad)
+                                tuple(rejected), cfg, ecfg, timings, bad, start)
