@@ -198,30 +198,30 @@ def assert_causal_track_picture(candidate) -> None:
 
 
 def test_two_effects_on_the_virtual_line_one_after_the_other():
-    """``two_effects`` (the softer trackform on 720-780 m and the offset accelerometer together): the trackform
-    stretch first (measured 720.0-768 m, factor 0.58), the offset after it (ACC_W1L_Z, −37 mm), each within 25 %
-    of the truth and each lowering the validation cells' error. Between them, since the evidence mirrors the
-    estimator's sleeper comb, come the everyday curve angles."""
+    """``two_effects`` (the softer trackform on 720-780 m and the offset accelerometer together), diagnosed from
+    the line's own calibration (``nominal``'s, no truth used): exactly the two effects, the trackform stretch
+    first, the offset second, each within 25 % of the truth and each lowering the validation cells' error.
+
+    Measured: 721.2-782.5 m, factor 0.592 (truth 720-780 m, 0.60), ΔBIC −1154; then ACC_W1L_Z −40.5 mm (truth
+    −40 mm), ΔBIC −320; nothing in round 3. Validation day's band index 1.26 → 0.84 dB (floor 0.75 dB). With the
+    estimator's defaults instead (measured, README) the line's curve angles come between the two."""
     from estimator.diagnosis import SensorOffset, TrackformStretch
     from lab_data.line.files import read_truth
 
-    d, res = _diagnose("two_effects")
+    _, nominal = _diagnose_nominal()
+    d, res = _diagnose("two_effects", start=nominal.state)
     truth = read_truth(d)["scenario"]
     change = truth["support_changes"][0]
     (channel, offset), = truth["sensor_offsets"].items()
     acc = res.diagnosis.accepted
-    assert len(acc) >= 2 and isinstance(acc[0].effect, TrackformStretch), res.diagnosis.verdict
+    assert len(acc) == 2 and isinstance(acc[0].effect, TrackformStretch), res.diagnosis.verdict
     assert abs(acc[0].params["stiffness_factor"] / change["factors"]["pad_stiffness_z"] - 1) < 0.25
     assert abs(acc[0].params["from_m"] - change["from_m"]) <= res.config.window_m
     assert abs(acc[0].params["to_m"] - change["to_m"]) <= res.config.window_m
-    found = [i for i, c in enumerate(acc) if isinstance(c.effect, SensorOffset)]
-    assert len(found) == 1 and acc[found[0]].effect.channel == channel, res.diagnosis.verdict
-    c = acc[found[0]]
+    c = acc[1]
+    assert isinstance(c.effect, SensorOffset) and c.effect.channel == channel, res.diagnosis.verdict
     assert abs(c.params["dy"] / offset[1] - 1) < 0.25
     assert acc[0].validation_after < acc[0].validation_before and c.validation_after < c.validation_before
-    for a in acc[1:]:
-        if a is not c:
-            assert_everyday_curve_angles(d, a)
 
 
 def test_nominal_on_the_virtual_line_accepts_only_the_lines_everyday_physics():
