@@ -826,7 +826,13 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
                         cls = _class_weights(fm, ko, chains[w], orient, orient.role(w))
                         trs = [fm.transfer(kind, sub.drop(columns="row"), fs, t, th) for t, th, _ in cls]
                     sub_o = other[ko]
-                    trs_o = [fm.transfer(ko, sub_o.drop(columns="row"), fs, t, th) for t, th, _ in cls]
+                    # the other wheelset's forces along its own contact normals: its role's angles on the same class
+                    # (a curve's calibrated angles differ between the leading and the trailing wheelset; the same
+                    # classes in the same order, one wheelbase apart as the rest of the coupling)
+                    cls_o = _class_weights(fm, ko, chains[w], orient, orient.role(wo)) if ko == "vertical_lateral" \
+                        else cls
+                    assert [c[0] for c in cls_o] == [c[0] for c in cls], "coupling classes out of step"
+                    trs_o = [fm.transfer(ko, sub_o.drop(columns="row"), fs, t, th) for t, th, _ in cls_o]
                     # C[s, s'] couples the same rail only (rail_coupling): with θ' = 0 (a vertical or half model of the
                     # other) its vertical force alone enters, cos θ_s α_z(a) F'_z
                     cps = [fm.coupling(tr, tro, t, wb) for (t, _, _), tr, tro in zip(cls, trs, trs_o)]

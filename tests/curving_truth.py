@@ -31,18 +31,3 @@ def curving_law(d, day: int = 1, leading: bool = True) -> tuple[float, float]:
     cp = CurvingParameters(**{k: v for k, v in truth["curving"].items() if k in CurvingParameters.__dataclass_fields__})
     g_l, g_r = rail_contact_angles(default_line(), np.array([590.0]), np.array([speed]), np.array([leading]), cp)
     return float(g_l[0]), float(g_r[0])
-
-
-def assert_everyday_curve_angles(d, candidate, day: int = 1) -> None:
-    """``candidate`` is curve C1's leading-wheelset contact angle, and its fit lies closer to the line's own curving
-    law (at survey ``day``'s speed) than the estimator's first-order default, on both rails."""
-    from estimator.contact_angles import CurvingModel
-    from estimator.diagnosis import ContactAngle
-
-    assert isinstance(candidate.effect, ContactAngle), candidate.effect
-    assert candidate.effect.curve == "C1" and candidate.effect.role == "leading"
-    law = dict(zip("LR", curving_law(d, day)))
-    default = CurvingModel().tread_angle_rad
-    for rail in "LR":
-        assert abs(candidate.params[f"gamma_{rail}"] - law[rail]) < abs(default - law[rail]), (rail, candidate.params,
-                                                                                               law)

@@ -87,7 +87,9 @@ def inconsistent_channels(table: pd.DataFrame) -> pd.DataFrame:
     Returns ``wheelset, channel, median_rho, share_negative, n_segments, reversal_explains, from_m, to_m`` for every
     channel whose median ρ lies below −:data:`RHO_REVERSED`; ``reversal_explains`` is the channel whose reversal
     brings every channel of the wheelset to a non-negative median ρ (the largest smallest median when several do),
-    empty when none does; ``from_m``/``to_m`` the chainage the segments cover.
+    empty when none does; ``from_m``/``to_m`` the chainage the segments cover. When a reversal explains the
+    wheelset and its channel reads against the model itself, that channel alone is reported: the others' predictions
+    hold its reading, so they read against the model through it, not on their own.
     """
     cols = ["wheelset", "channel", "median_rho", "share_negative", "n_segments", "reversal_explains", "from_m",
             "to_m"]
@@ -106,6 +108,8 @@ def inconsistent_channels(table: pd.DataFrame) -> pd.DataFrame:
             mins = gr.groupby("channel")["rho_if_reversed"].median().min()
             if mins >= 0 and mins > best_min:
                 best, best_min = str(r), float(mins)
+        if best in bad.index:
+            bad = bad[[best]]
         for c, v in bad.items():
             gc = g[g["channel"] == c]
             rows.append({"wheelset": int(w), "channel": str(c), "median_rho": float(v),

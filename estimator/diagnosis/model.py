@@ -77,11 +77,12 @@ class Evaluator:
                 tf = ch.apply(tf)
         return state.line_wide(tf)
 
-    def theta_at(self, state: FieldState, seg) -> tuple[float, float]:
+    def theta_at(self, state: FieldState, seg, role: str | None = None) -> tuple[float, float]:
+        """Contact angles (vehicle sides) of the segment's wheelset, or of the wheelset of ``role`` beside it."""
         if seg.curve is None:
             return seg.theta
         got = {r: (gl, gr) for c, r, gl, gr in state.curve_angles if c == seg.curve}
-        g = got.get(seg.role, got.get("any"))
+        g = got.get(role or seg.role, got.get("any"))
         if g is None:
             return seg.theta
         gamma = dict(zip(("L", "R"), g))
@@ -136,7 +137,11 @@ class Evaluator:
         other = self.blocks.get(seg.other) if seg.other is not None else None
         offs_o = tuple(state.offset_of(c) for c in other.channels) if other is not None else ()
         wb = round(float(seg.wheelbase_m), 4) if other is not None else None
-        key = (seg.wheelset, tf, th, round(k, 3), offs, state.supports, seg.other, offs_o, wb)
+        th_o = None
+        if other is not None:  # the other wheelset's forces along its own normals (its role's angles)
+            th_o = self.theta_at(state, seg, "trailing" if seg.role == "leading" else "leading")
+            th_o = (round(th_o[0], 6), round(th_o[1], 6))
+        key = (seg.wheelset, tf, th, round(k, 3), offs, state.supports, seg.other, offs_o, wb, th_o)
         T = self._memo.get(key)
         if T is None:
             if len(self._memo) > _MEMO_MAX:
@@ -151,7 +156,7 @@ class Evaluator:
                 T = bl.transfer(tf, th, k, offsets=arr(offs), supports=state.supports)
             else:
                 T = bl.coupled_transfer(other, tf, th, k, wb, offsets=arr(offs), offsets_other=arr(offs_o),
-                                        supports=state.supports)
+                                        supports=state.supports, theta_other=th_o)
             self._memo[key] = T
         return T
 

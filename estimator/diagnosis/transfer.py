@@ -149,22 +149,26 @@ class WheelsetBlocks:
 
     def coupled_transfer(self, other: "WheelsetBlocks", trackform, theta: tuple[float, float],
                          contact_stiffness: float, wheelbase_m: float, *, offsets: np.ndarray | None = None,
-                         offsets_other: np.ndarray | None = None, supports: str = "continuous") -> np.ndarray:
+                         offsets_other: np.ndarray | None = None, supports: str = "continuous",
+                         theta_other: tuple[float, float] | None = None) -> np.ndarray:
         """``[T, C(d) P']`` (n_f, n_sides, m + m'): the irregularity from this wheelset's and the other's channels.
 
         ``C`` is :func:`estimator.inversion.rail_coupling` at the wheelbase, ``P'`` the other wheelset's
-        :meth:`transfer_and_forces` at the same trackform and angles (as the estimator pairs them).
+        :meth:`transfer_and_forces` at the same trackform and at its own contact angles ``theta_other`` (default
+        ``theta``; on a curve the leading and trailing wheelsets' differ), as the estimator pairs them.
         """
+        th_o = theta if theta_other is None else tuple(theta_other)
         if other.kind != self.kind or other.f.size != self.f.size or not np.allclose(other.f, self.f):
             raise ValueError(f"wheelset {other.wheelset}'s blocks ({other.kind}, {other.f.size} lines) do not match "
                              f"wheelset {self.wheelset}'s ({self.kind}, {self.f.size} lines)")
         T = self.transfer(trackform, theta, contact_stiffness, offsets=offsets, supports=supports)
-        _, P = other.transfer_and_forces(trackform, theta, contact_stiffness, offsets=offsets_other,
+        _, P = other.transfer_and_forces(trackform, th_o, contact_stiffness, offsets=offsets_other,
                                          supports=supports)
-        key = ("C", trackform, round(float(wheelbase_m), 4), tuple(round(t, 6) for t in theta))
+        key = ("C", trackform, round(float(wheelbase_m), 4), tuple(round(t, 6) for t in theta),
+               tuple(round(t, 6) for t in th_o))
         if key not in self._track_cache:
             self._track_cache[key] = rail_coupling(self.f, trackform, float(wheelbase_m), self.sides, other.sides,
-                                                   theta, theta)
+                                                   theta, th_o)
         return np.concatenate([T, self._track_cache[key] @ P], axis=2)
 
     def forward(self, trackform, theta: tuple[float, float] = (0.0, 0.0), contact_stiffness: float = 1e9, *,
