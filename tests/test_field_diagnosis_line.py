@@ -52,7 +52,7 @@ def _campaign(scenario: str) -> str:
     return line_campaign_dir(scenario, days=2, runs_per_day=2, section=FIRST_CURVE_SECTION)
 
 
-def _diagnose(scenario: str, validation_stretches=(), line=None, curve_contact_angles=None, start=None, **config):
+def _diagnose(scenario: str, validation_stretches=(), line=None, curve_contact_angles=None, **config):
     """The site's diagnosis on the campaign of ``scenario``; ``line`` (default: the campaign's ``line.json``) and
     ``curve_contact_angles`` (:class:`~estimator.config.EstimatorConfig`) change what the estimator is told."""
     from estimator.config import EstimatorConfig
@@ -65,7 +65,7 @@ def _diagnose(scenario: str, validation_stretches=(), line=None, curve_contact_a
                               line=str(line or f"{d}/line.json"), config=DiagnosisConfig(**{"workers": 2, **config}),
                               estimator_config=EstimatorConfig(wheelbase_m=2.1,
                                                                curve_contact_angles=curve_contact_angles),
-                              validation_stretches=validation_stretches, start=start)
+                              validation_stretches=validation_stretches)
     return d, res
 
 
