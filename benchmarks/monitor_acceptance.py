@@ -272,20 +272,30 @@ def growth(work: Path, mon, setup: Setup, reuse: bool = False) -> dict:
     ext = {s: m.sections.extent(s) for s in mf.forecast["section"].unique()}
     fc = mf.forecast[(mf.forecast["rail"] == "R") & mf.forecast["band_mm"].isin(list(FORECAST_THRESHOLDS_UM))
                      & (mf.forecast["section"] == "curve_1")].copy()
+    truth_sec = section_levels(truth, {"curve_1": ext.get("curve_1", (470.0, 710.0))}, mon.window_m)
     frows = []
     for _, r in fc.iterrows():
         T = FORECAST_THRESHOLDS_UM[r["band_mm"]]
         true = crossing_date(camp, ext[r["section"]], r["rail"], r["band_mm"], T, as_of)
         horizon = (pd.Timestamp(true) - pd.Timestamp(as_of)).days if true else np.nan
         err = (pd.Timestamp(r["crossing_date"]) - pd.Timestamp(true)).days if true and r["crossing_date"] else np.nan
+        # the part of the date's error that the last day's level error explains through the forecast's gain
+        # sensitivity (estimator.monitoring.trends: -level error x days_per_db); the rest is the slope's
+        t_last = truth_sec[(truth_sec["date"] == as_of) & (truth_sec["section"] == r["section"])
+                           & (truth_sec["rail"] == r["rail"]) & (truth_sec["band_mm"] == r["band_mm"])]
+        lvl = 20 * np.log10(r["last_pk_pk_um"] / t_last["pk_pk_um"].iloc[0]) if len(t_last) else np.nan
         frows.append({"section": r["section"], "rail": r["rail"], "band_mm": r["band_mm"], "threshold_um": T,
                       "as_of": as_of, "forecast": r["crossing_date"], "forecast_95": f"{r['crossing_lo']}..{r['crossing_hi']}",
                       "truth": true, "horizon_days": horizon, "error_days": err,
-                      "error_share_of_horizon": err / horizon if horizon else np.nan, "status": r["status"]})
+                      "error_share_of_horizon": err / horizon if horizon else np.nan, "status": r["status"],
+                      "days_per_db": r["days_per_db"], "last_level_error_db": lvl,
+                      "error_from_level_days": -lvl * r["days_per_db"],
+                      "level_error_for_20pct_db": TOL_FORECAST * horizon / r["days_per_db"] if horizon else np.nan})
     ftab = pd.DataFrame(frows)
-    truth_sec = section_levels(truth, {"curve_1": ext.get("curve_1", (470.0, 710.0))}, mon.window_m)
     _say(f"\nthreshold-crossing forecast made on {as_of} (thresholds {FORECAST_THRESHOLDS_UM} um) vs the truth's "
-         f"date (acceptance |error| <= {TOL_FORECAST:.0%} of the horizon):")
+         f"date (acceptance |error| <= {TOL_FORECAST:.0%} of the horizon); error_from_level_days: what the last "
+         f"day's level error alone moves the date (-level error x days_per_db); level_error_for_20pct_db: the common "
+         f"gain error that alone uses up the tolerance:")
     _say(ftab.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
     gr = mf.growth[(mf.growth["section"] == "curve_1") & (mf.growth["rail"] == "R")]
     _say(gr[["section", "rail", "band_mm", "days", "growth_um_per_month", "growth_se_um_per_month",

@@ -345,6 +345,11 @@ def test_the_forecast_interval_holds_the_systematic_level_uncertainty():
         pd.Timestamp("1970-01-01").date().toordinal() + int(round(late))).isoformat()
     f0 = forecast(g.drop(columns=["systematic_lo_db", "systematic_hi_db"]), {"30-100": 40.0}).iloc[0]
     assert f0["interval"] == "statistical only" and f0["crossing_lo"] == f0["crossing_hi"] == f0["crossing_date"]
+    # the date's sensitivity to a gain error common to every day: estimates 0.01 dB high reach 40 µm when the
+    # true amplitude is 40 / 10^(0.01/20), (60 − t*) / 0.01 days earlier per dB (finite difference of the closed form)
+    t_high = (40.0 / 10 ** (0.01 / 20) - 10.0) / 0.5
+    assert f["days_per_db"] == pytest.approx((60.0 - t_high) / 0.01, rel=1e-3)
+    assert f["days_per_db"] == pytest.approx(40.0 * math.log(10) / 20 / 0.5, rel=1e-12)  # 9.2 d/dB, 15 % of t*
 
 
 def test_a_day_with_one_run_takes_the_sections_pooled_scatter():

@@ -159,9 +159,12 @@ def write_report(res, path, figures: dict, cfg: MonitoringConfig = MonitoringCon
     # 2 plan
     p += [f"<h2>{SECTION_TITLES[1]}</h2>",
           "<p>Per section, rail and EN 13231-3 band: the last day's peak-to-peak, the growth since the last grinding "
-          f"and when the threshold is crossed ({cfg.confidence:.0%} interval). Sections already above come first.</p>",
+          f"and when the threshold is crossed ({cfg.confidence:.0%} interval). Sections already above come first. "
+          "<code>days_per_db</code> is how many days earlier the date falls for each dB by which every day's "
+          "estimate reads high (a model's gain error, which the runs' scatter does not show): close to its threshold "
+          "a section's date is far more sensitive than its level.</p>",
           _table(fc[["section", "rail", "band_mm", "last_pk_pk_um", "threshold_um", "growth_um_per_month", "status",
-                     "crossing_date", "crossing_lo", "crossing_hi"]] if len(fc) else fc)]
+                     "crossing_date", "crossing_lo", "crossing_hi", "days_per_db"]] if len(fc) else fc)]
     # 3 grinding
     p += [f"<h2>{SECTION_TITLES[2]}</h2>",
           "<p>A grinding is a sudden fall of the band levels over a stretch (both rails, several bands) between two "

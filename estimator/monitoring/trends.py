@@ -32,7 +32,19 @@ interval. The systematic factor moves the crossing: the true amplitude
 ``k (a + b t)`` reaches ``T`` at ``t*(k) = (T/k − a)/b``; with ``k`` at the
 ends of the systematic interval (``10^{lo/20}``, ``10^{hi/20}``) the
 forecast's interval runs from ``t*(k_hi) − z sd`` to ``t*(k_lo) + z sd``
-(``interval`` says whether it holds the systematic part). A section already above its threshold is reported as such (with
+(``interval`` says whether it holds the systematic part).
+
+**Sensitivity to a common gain error.** The same law gives how far a gain
+error common to every day (the track or wheelset model's, which no
+run-to-run scatter shows) moves the date: ``dt*/dg = −T ln10 / (20 b)`` per
+dB of gain ``g``, reported as ``days_per_db``: each dB by which the estimates
+read high brings the forecast that many days early. Relative to the time
+left, ``days_per_db / (t* − t_last) ≈ 0.115 T / (T − pk_last)``: close to
+its threshold a section's date is far more sensitive than its level (at
+``pk_last = 0.7 T`` a 0.5 dB gain error moves the date by a fifth of the
+time left).
+
+A section already above its threshold is reported as such (with
 the first day above); a section whose slope is not significantly positive
 (``b < 2 se_b``) gets no date.
 """
@@ -166,7 +178,8 @@ def forecast(growth_table: pd.DataFrame, thresholds_um: dict, day_sections: pd.D
     -------
     pandas.DataFrame
         ``section, rail, band_mm, threshold_um, last_pk_pk_um, status, crossing_date, crossing_lo, crossing_hi,
-        crossing_day, crossing_sd_days``, sorted by crossing date (already above first).
+        crossing_day, crossing_sd_days, days_per_db`` (the crossing's shift per dB of common gain error, module
+        docstring), sorted by crossing date (already above first).
     """
     z = stats.norm.ppf((1 + confidence) / 2)
     rows = []
@@ -175,7 +188,7 @@ def forecast(growth_table: pd.DataFrame, thresholds_um: dict, day_sections: pd.D
         row = {"section": r["section"], "rail": r["rail"], "band_mm": r["band_mm"], "threshold_um": T,
                "last_pk_pk_um": r["last_pk_pk_um"], "growth_um_per_month": r.get("growth_um_per_month", math.nan),
                "crossing_date": "", "crossing_lo": "", "crossing_hi": "", "crossing_day": math.nan,
-               "crossing_sd_days": math.nan}
+               "crossing_sd_days": math.nan, "days_per_db": math.nan}
         if not np.isfinite(T):
             rows.append({**row, "status": "no threshold for this band"})
             continue
@@ -210,7 +223,7 @@ def forecast(growth_table: pd.DataFrame, thresholds_um: dict, day_sections: pd.D
         rows.append({**row, "status": "forecast", "crossing_date": date_of(day),
                      "crossing_lo": date_of(min(early - z * sd_e, day - z * sd)),
                      "crossing_hi": date_of(max(late + z * sd_l, day + z * sd)), "crossing_day": day,
-                     "crossing_sd_days": sd,
+                     "crossing_sd_days": sd, "days_per_db": T * math.log(10) / (20 * b),
                      "interval": "statistical and systematic" if systematic else "statistical only"})
     out = pd.DataFrame(rows)
     if out.empty:
