@@ -165,7 +165,8 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
     fc = res.forecast
     if len(fc):
         for _, r in fc[fc["status"] != "too few days"].head(12).iterrows():
-            when = (f" {r['crossing_date']} [{r['crossing_lo']} .. {r['crossing_hi']}], {r['days_per_db']:.0f} d "
+            lo = f"possibly above already ({r['crossing_lo']})" if r.get("possibly_above_now") else r["crossing_lo"]
+            when = (f" {r['crossing_date']} [{lo} .. {r['crossing_hi']}], {r['days_per_db']:.0f} d "
                     "earlier per dB read high") if r["status"] == "forecast" else ""
             print(f"  {r['section']:>22s} rail {r['rail']} {r['band_mm']:>8s} mm: {r['last_pk_pk_um']:7.1f} um "
                   f"(threshold {r['threshold_um']:g}) {r['status']}{when}")

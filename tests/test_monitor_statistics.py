@@ -350,6 +350,17 @@ def test_the_forecast_interval_holds_the_systematic_level_uncertainty():
     t_high = (40.0 / 10 ** (0.01 / 20) - 10.0) / 0.5
     assert f["days_per_db"] == pytest.approx((60.0 - t_high) / 0.01, rel=1e-3)
     assert f["days_per_db"] == pytest.approx(40.0 * math.log(10) / 20 / 0.5, rel=1e-12)  # 9.2 d/dB, 15 % of t*
+    assert not f["possibly_above_now"]  # no last survey day given: nothing to compare the early end with
+    # surveyed up to day 40 (pk 30 µm): with +4 dB possible the true amplitude, 30 × 10^(4/20) = 47.5 µm, is above
+    # 40 µm already; the early end (40/k_hi − 10)/0.5 = 30.5 d would lie before the last day, so the interval
+    # starts on that day and says the section may be above now; with +2 dB (43.5 d) it does not
+    last = pd.Timestamp("1970-01-01") + pd.Timedelta(days=19840)
+    g4 = g.assign(last_date=last.date().isoformat(), systematic_hi_db=4.0)
+    f4 = forecast(g4, {"30-100": 40.0}).iloc[0]
+    assert f4["possibly_above_now"] and f4["crossing_lo"] == last.date().isoformat()
+    assert f4["crossing_date"] == f["crossing_date"] and f4["crossing_hi"] == f["crossing_hi"]
+    f2 = forecast(g4.assign(systematic_hi_db=2.0), {"30-100": 40.0}).iloc[0]
+    assert not f2["possibly_above_now"] and f2["crossing_lo"] == f["crossing_lo"] > last.date().isoformat()
 
 
 def test_a_day_with_one_run_takes_the_sections_pooled_scatter():

@@ -142,7 +142,9 @@ def write_report(res, path, figures: dict, cfg: MonitoringConfig = MonitoringCon
         r = soon.iloc[0]
         attention.append(f"next threshold crossing: section <b>{_e(r['section'])}</b>, rail {_e(r['rail'])}, "
                          f"{_e(r['band_mm'])} mm around <b>{_e(r['crossing_date'])}</b> "
-                         f"({_e(r['crossing_lo'])} to {_e(r['crossing_hi'])})")
+                         + (f"(possibly above already on {_e(r['crossing_lo'])}, at the latest {_e(r['crossing_hi'])})"
+                            if r.get("possibly_above_now") else
+                            f"({_e(r['crossing_lo'])} to {_e(r['crossing_hi'])})"))
     if len(res.grinding):
         attention.append(f"{len(res.grinding)} grinding(s) detected")
     if len(res.flags):
@@ -162,9 +164,12 @@ def write_report(res, path, figures: dict, cfg: MonitoringConfig = MonitoringCon
           f"and when the threshold is crossed ({cfg.confidence:.0%} interval). Sections already above come first. "
           "<code>days_per_db</code> is how many days earlier the date falls for each dB by which every day's "
           "estimate reads high (a model's gain error, which the runs' scatter does not show): close to its threshold "
-          "a section's date is far more sensitive than its level.</p>",
+          "a section's date is far more sensitive than its level. <code>possibly_above_now</code>: the interval's "
+          "early end reaches the last survey day (the upper side of the level's systematic interval is above the "
+          "threshold already), so the interval starts there.</p>",
           _table(fc[["section", "rail", "band_mm", "last_pk_pk_um", "threshold_um", "growth_um_per_month", "status",
-                     "crossing_date", "crossing_lo", "crossing_hi", "days_per_db"]] if len(fc) else fc)]
+                     "crossing_date", "crossing_lo", "crossing_hi", "possibly_above_now", "days_per_db"]]
+                  if len(fc) else fc)]
     # 3 grinding
     p += [f"<h2>{SECTION_TITLES[2]}</h2>",
           "<p>A grinding is a sudden fall of the band levels over a stretch (both rails, several bands) between two "

@@ -32,7 +32,12 @@ interval. The systematic factor moves the crossing: the true amplitude
 ``k (a + b t)`` reaches ``T`` at ``t*(k) = (T/k − a)/b``; with ``k`` at the
 ends of the systematic interval (``10^{lo/20}``, ``10^{hi/20}``) the
 forecast's interval runs from ``t*(k_hi) − z sd`` to ``t*(k_lo) + z sd``
-(``interval`` says whether it holds the systematic part).
+(``interval`` says whether it holds the systematic part). When that early
+end falls before the last survey day, the systematic interval's upper side
+already reaches the threshold on that day: the section may be above it now.
+The interval then starts on the last survey day and ``possibly_above_now``
+says so (an extrapolation of the line before the days it was fitted to
+would be a date nobody can act on).
 
 **Sensitivity to a common gain error.** The same law gives how far a gain
 error common to every day (the track or wheelset model's, which no
@@ -179,7 +184,8 @@ def forecast(growth_table: pd.DataFrame, thresholds_um: dict, day_sections: pd.D
     pandas.DataFrame
         ``section, rail, band_mm, threshold_um, last_pk_pk_um, status, crossing_date, crossing_lo, crossing_hi,
         crossing_day, crossing_sd_days, days_per_db`` (the crossing's shift per dB of common gain error, module
-        docstring), sorted by crossing date (already above first).
+        docstring), ``possibly_above_now`` (the interval's early end reaches the last survey day), sorted by
+        crossing date (already above first).
     """
     z = stats.norm.ppf((1 + confidence) / 2)
     rows = []
@@ -188,7 +194,7 @@ def forecast(growth_table: pd.DataFrame, thresholds_um: dict, day_sections: pd.D
         row = {"section": r["section"], "rail": r["rail"], "band_mm": r["band_mm"], "threshold_um": T,
                "last_pk_pk_um": r["last_pk_pk_um"], "growth_um_per_month": r.get("growth_um_per_month", math.nan),
                "crossing_date": "", "crossing_lo": "", "crossing_hi": "", "crossing_day": math.nan,
-               "crossing_sd_days": math.nan, "days_per_db": math.nan}
+               "crossing_sd_days": math.nan, "days_per_db": math.nan, "possibly_above_now": False}
         if not np.isfinite(T):
             rows.append({**row, "status": "no threshold for this band"})
             continue
@@ -220,8 +226,11 @@ def forecast(growth_table: pd.DataFrame, thresholds_um: dict, day_sections: pd.D
         systematic = bool(np.isfinite(lo_db) and np.isfinite(hi_db))
         early, sd_e = crossing(10 ** (hi_db / 20)) if systematic else (day, sd)
         late, sd_l = crossing(10 ** (lo_db / 20)) if systematic else (day, sd)
+        first = min(early - z * sd_e, day - z * sd)
+        last_day = day_number([r["last_date"]])[0] if r.get("last_date") else math.nan
+        now = bool(np.isfinite(last_day) and first < last_day)
         rows.append({**row, "status": "forecast", "crossing_date": date_of(day),
-                     "crossing_lo": date_of(min(early - z * sd_e, day - z * sd)),
+                     "crossing_lo": date_of(last_day if now else first), "possibly_above_now": now,
                      "crossing_hi": date_of(max(late + z * sd_l, day + z * sd)), "crossing_day": day,
                      "crossing_sd_days": sd, "days_per_db": T * math.log(10) / (20 * b),
                      "interval": "statistical and systematic" if systematic else "statistical only"})
