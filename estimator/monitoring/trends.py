@@ -230,7 +230,7 @@ def forecast(growth_table: pd.DataFrame, thresholds_um: dict, day_sections: pd.D
         last_day = day_number([r["last_date"]])[0] if r.get("last_date") else math.nan
         now = bool(np.isfinite(last_day) and first < last_day)
         rows.append({**row, "status": "forecast", "crossing_date": date_of(day),
-                     "crossing_lo": date_of(last_day if now else first), "possibly_above_now": now,
+                     "crossing_lo": date_of(min(last_day, day) if now else first), "possibly_above_now": now,
                      "crossing_hi": date_of(max(late + z * sd_l, day + z * sd)), "crossing_day": day,
                      "crossing_sd_days": sd, "days_per_db": T * math.log(10) / (20 * b),
                      "interval": "statistical and systematic" if systematic else "statistical only"})
