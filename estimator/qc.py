@@ -183,7 +183,9 @@ def check_run(run: Run, track: OdometryTrack, config: EstimatorConfig = Estimato
         clip, level = clipped(xq, config.clip_min_samples)
         peak = float(np.max(np.abs(x[glitch]))) if glitch.any() else 0.0
         for flag, kind, reason in (
-                (nan & ~lost, "dropout_nan", "no data (NaN) in the recording"),
+                (nan & ~lost & ~np.isinf(x), "dropout_nan", "no data (NaN) in the recording"),
+                (np.isinf(x), "non_finite", "infinite values (+/-inf) in the recording: an overflow or corrupt "
+                                            "samples, not a measurement"),
                 (glitch, "glitch", f"{int(glitch.sum())} sample(s) beyond {ACC_GLITCH_G:g} g (up to {peak:.4g} m/s^2): "
                                    "no axlebox produces that, corrupt samples; masked, and left out of the other "
                                    "wheelset's rail coupling"),

@@ -144,10 +144,10 @@ class QCEvent:
     chainage_to: float = float("nan")
 
     def describe(self) -> str:
-        where = f"{self.t_start:.3f}-{self.t_end:.3f} s"
+        where = f" {self.t_start:.3f}-{self.t_end:.3f} s" if np.isfinite(self.t_start) else ""  # whole channel
         if np.isfinite(self.chainage_from):
             where += f", chainage {self.chainage_from:.1f}-{self.chainage_to:.1f} m"
-        return f"{self.kind} [{self.channel}] {where}: {self.reason} ({self.action})"
+        return f"{self.kind} [{self.channel}]{where}: {self.reason} ({self.action})"
 
     def as_dict(self) -> dict:
         return {"kind": self.kind, "channel": self.channel, "t_start_s": self.t_start, "t_end_s": self.t_end,

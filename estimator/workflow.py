@@ -642,6 +642,42 @@ def _coupling_gaps(w: int, kind: str, wo: int, ko: str, classes, sides: tuple[st
     return out
 
 
+def _why_no_rails(run: Run, wheelsets: list[int], skipped: list[str]) -> str:
+    """Why wheelsets have no estimate: their channels quality control masked over most of the run (with the
+    findings' kinds) and their models' skip reasons; '' when there is nothing to say."""
+    share = run.masked_share
+    parts = []
+    for w in wheelsets:
+        for name in run.wheelset_channels(w)["name"]:
+            if share.get(name, 0.0) >= 0.5:
+                kinds = sorted({e.kind for e in run.mask.events if e.channel == name}) if run.mask else []
+                parts.append(f"{name} masked over {share[name]:.0%} of the run ({', '.join(kinds) or 'masked'})")
+        parts += [m for m in skipped if m.startswith(f"wheelset {w},")]
+    return f" because {'; '.join(parts)}" if parts else ""
+
+
+def _outside_trackforms(fm: FieldModel, chains: dict[int, np.ndarray]) -> list[str]:
+    """The stretches a run passes that none of the line's trackform sections holds (the default trackform is used
+    there, and a user who described the line's track should know where it does not apply)."""
+    sections = fm.trackforms()
+    if fm.trackform is not None or not sections:
+        return []
+    from estimator.qc import runs_of
+
+    out = []
+    for w, x in chains.items():
+        inside = np.zeros(x.size, bool)
+        for a, b, _ in sections:
+            inside |= (x >= a) & (x <= b)
+        spans = [(float(np.min(x[i:j])), float(np.max(x[i:j]))) for i, j in runs_of(~inside & np.isfinite(x))]
+        if spans:
+            where = ", ".join(f"{lo:.1f}-{hi:.1f} m" for lo, hi in spans[:5]) + (" ..." if len(spans) > 5 else "")
+            out.append(f"wheelset {w} passes chainage {where}, which no trackform section of the line holds (they "
+                       f"cover {', '.join(f'{a:g}-{b:g} m' for a, b, _ in sections[:6])}): receptance's default "
+                       "trackform (Trackform()) is used there")
+    return out
+
+
 def _say_once(run, steps: list, msg: str) -> None:
     """A finding stated once per run however many models meet it."""
     if msg not in steps:
@@ -732,6 +768,8 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
         # one edge per wheelset: its models then share their valid stretches (and one time -> space interpolation)
         edge_w = max((tr.edge_s for *_, trs in plans for tr in trs), default=0.0)
         plans_by_w[w], edges[w] = plans, edge_w
+    for msg in _outside_trackforms(fm, chains):
+        _say_once(run, steps, msg)
     kinds_of = {w: {kind for kind, *_ in plans} for w, plans in plans_by_w.items()}
     coupling = cfg.bogie_coupling and len(plans_by_w) == 2
     # fewer than two balises leave the odometer's scale unmeasured; with the wheelbase given (a drawing value) the
@@ -784,8 +822,9 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
                                                                           in tis.items() if ww == w
                                                                           for s in ti.sides})) or "none")
                              for w in run.wheelsets)
-            raise WheelbaseError(f"{run.source}: no rail instrumented on both wheelsets ({have}): the lead/trail "
-                                 f"lag cannot be measured; give --wheelbase (wheelbase_m)")
+            why = _why_no_rails(run, [w for w in run.wheelsets if not any(ww == w for ww, _ in tis)], skipped)
+            raise WheelbaseError(f"{run.source}: no rail instrumented on both wheelsets ({have}){why}: the "
+                                 f"lead/trail lag cannot be measured; give --wheelbase (wheelbase_m)")
         if est is None or contrast < WHEELBASE_MIN_CORRELATION:
             if len(run.wheelsets) > 1:
                 raise WheelbaseError(

@@ -159,9 +159,9 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     from ema.modes_io import write_modeset
     from ema.plot import plot_stabilisation, plot_synthesis
 
-    from railmodal.output import staged_output
+    from railmodal.output import check_output_folder, staged_output
 
-    out = Path(args.out)
+    out = check_output_folder(args.out)
     band = tuple(args.band)
     hammers, frfs, tables = _identify_inputs(args)
     t0 = time.perf_counter()

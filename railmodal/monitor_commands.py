@@ -136,9 +136,10 @@ def _cmd_reprocess(args: argparse.Namespace) -> int:
 def _cmd_monitor(args: argparse.Namespace) -> int:
     from estimator.monitoring import MonitoringStore, monitor
     from estimator.monitoring.report import write_monitoring
-    from railmodal.output import staged_output
+    from railmodal.output import check_output_folder, staged_output
 
     t0 = time.perf_counter()
+    check_output_folder(args.out)
     store = MonitoringStore(args.store)
     calibration = None
     if args.calibration_trolley:
@@ -193,8 +194,9 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     from estimator.monitoring import MonitoringStore
     from estimator.monitoring.plot import plot_reference
     from estimator.monitoring.reference import compare_reference
-    from railmodal.output import staged_output
+    from railmodal.output import check_output_folder, staged_output
 
+    check_output_folder(args.out)
     store = MonitoringStore(args.store)
     results = [compare_reference(store, t, line=args.line_id, model_hash=args.model_version) for t in args.trolley]
     with staged_output(args.out) as tmp:

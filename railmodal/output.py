@@ -52,6 +52,13 @@ def check_output_folder(out, option: str = "--out") -> Path:
         raise OutputFolderError(f"{option} {str(p)!r}: {str(parent)!r} is a file, so the folder cannot be created")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise OutputFolderError(f"{option} {str(p)!r}: the folder {str(parent)!r} is not writable")
+    # permission bits do not tell everything (root passes them; a read-only or virtual file system does not take
+    # files): a folder made and removed at once is the test that holds, before hours of work
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=f".{p.name or 'out'}.probe-", dir=parent))
+    except OSError as exc:
+        raise OutputFolderError(f"{option} {str(p)!r}: nothing can be written in {str(parent)!r} "
+                                f"({exc.strerror or exc})") from None
     return p
 
 

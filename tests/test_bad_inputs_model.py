@@ -12,6 +12,7 @@ import dataclasses
 import json
 import re
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -467,3 +468,14 @@ def test_a_repeated_reader_warning_is_given_once_per_file_with_a_count(lab, tmp_
     msgs = [r.getMessage() for r in caplog.records if "specific data type" in r.getMessage()]
     assert msgs == [f"{tmp_path / 'acc.uff'}: {len(blocks)} dataset(s) 55 (modes 1-{len(blocks)}): specific data "
                     f"type 12 is not displacement (8); read as mode shape"]
+
+
+@pytest.mark.skipif(not Path("/proc/self").exists(), reason="needs a virtual file system that takes no files")
+def test_an_output_folder_nothing_can_be_written_in_is_refused_before_any_work():
+    """/proc passes the permission bits for root but takes no folder: refused up front, naming --out and the
+    folder, instead of failing after the whole computation on a hidden staging folder's name."""
+    from railmodal.output import OutputFolderError, check_output_folder
+
+    with pytest.raises(OutputFolderError, match=r"--out '/proc/railmodal_out': nothing can be written in '/proc'"):
+        check_output_folder("/proc/railmodal_out")
+    assert not list(Path("/proc").glob(".railmodal_out.probe-*"))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import re
 
 import numpy as np
 import pandas as pd
@@ -140,6 +141,26 @@ def test_a_channel_at_a_wrong_rate_is_rejected(tmp_path, table):
         read_run(p, table, fs=2000.0)
 
 
+def test_a_channel_on_another_clock_is_rejected_by_its_drift(tmp_path, table):
+    """ACC_W1L_Z truly sampled at 999.2 Hz (honest time stamps, 0.08 % off: inside the rate tolerance). Put on the
+    1 kHz grid, its last sample would sit (1000/999.2 − 1) × its 2999 intervals = 2.40 samples before its time; it
+    is rejected with that drift named. A clock 1 ppm off drifts 0.003 samples over the 3 s and is kept."""
+    ch = _channels()
+    t, v, u = ch["ACC_W1L_Z"]
+    p = tmp_path / "run.mf4"
+    ch["ACC_W1L_Z"] = (t[0] + np.arange(t.size) / 999.2, v, u)
+    write_mdf4(p, ch, HEADER)
+    run = read_run(p, table)
+    (ev,) = run.rejected
+    drift = (t.size - 1) * (1000.0 / 999.2 - 1)
+    assert ev.kind == "wrong_rate" and ev.channel == "ACC_W1L_Z" and "ACC_W1L_Z" not in run.names
+    assert f"drifts {drift:+.2f} samples" in ev.reason and "999.2 Hz" in ev.reason
+    ch["ACC_W1L_Z"] = (t[0] + np.arange(t.size) / (1000.0 * (1 + 1e-6)), v, u)
+    write_mdf4(p, ch, HEADER)
+    run = read_run(p, table)
+    assert not run.rejected and "ACC_W1L_Z" in run.names
+
+
 def test_unit_contradicting_the_table_missing_odometry_and_header_direction(tmp_path, table):
     ch = _channels()
     ch["ACC_W1L_Z"] = (ch["ACC_W1L_Z"][0], ch["ACC_W1L_Z"][1], "m/s^2")
@@ -158,6 +179,10 @@ def test_unit_contradicting_the_table_missing_odometry_and_header_direction(tmp_
     with pytest.raises(RunFileError, match="no 'direction'"):
         read_run(p, table)
     assert read_run(p, table, direction="backward").header.direction == "backward"
+    write_mdf4(p, _channels(), {**HEADER, "direction": "sideways"})  # named by the file, not by the run id
+    with pytest.raises(RunFileError, match=rf"^{re.escape(str(p))}: header direction must be one of .* got 'sideways'"):
+        read_run(p, table)
+    assert read_run(p, table, direction="forward").header.direction == "forward"
 
 
 def test_line_and_trolley_files(tmp_path):
@@ -587,6 +612,46 @@ def test_a_header_that_cannot_be_read_or_gives_a_key_twice_and_rows_without_a_ch
         read_run(p, table)
 
 
+def test_a_channel_without_a_unit_in_the_file_is_named(tmp_path, table, caplog):
+    """The file cannot confirm the sensor table's unit of a channel it gives without one: read, and said."""
+    ch = _channels()
+    ch["ACC_W1L_Z"] = (*ch["ACC_W1L_Z"][:2], "")
+    with caplog.at_level(logging.WARNING, logger="estimator"):
+        run = read_run(_write(tmp_path, "nounit", ch, "csv"), table)
+    assert "ACC_W1L_Z" in run.names
+    assert "acceleration channel(s) ACC_W1L_Z (g) carry no unit in the file" in caplog.text
+
+
+def test_text_in_a_number_column_is_refused_and_infinity_is_named(tmp_path, table):
+    """A long CSV whose value cell reads 'abc' is damaged, not a dropout: refused naming channel, column and row.
+    Empty and NaN cells are missing samples. An 'inf' reads (a logger's overflow) and quality control names it
+    as infinite values, not as no data."""
+    from estimator.spatial import odometry_track
+
+    ch = _channels()
+    p = _write(tmp_path, "text", ch, "csv")
+    lines = p.read_text().splitlines()
+    first = next(i for i, ln in enumerate(lines) if ln.startswith("ACC_W1L_Z,"))
+    header = next(i for i, ln in enumerate(lines) if ln.startswith("channel"))
+    for value, k in (("abc", 7), ("", 5), ("NaN", 6)):
+        parts = lines[first + k].split(",")
+        parts[2] = value
+        lines[first + k] = ",".join(parts)
+    p.write_text("\n".join(lines) + "\n")
+    row = first + 7 - header
+    with pytest.raises(RunFileError, match=rf"text.csv: channel 'ACC_W1L_Z', column 'value', data row {row} .*"
+                                           r"'abc' is not a number"):
+        read_run(p, table)
+    parts = lines[first + 7].split(",")
+    parts[2] = "inf"
+    lines[first + 7] = ",".join(parts)
+    p.write_text("\n".join(lines) + "\n")
+    run = read_run(p, table)
+    checked = check_run(run, odometry_track(run.odometry, +1))
+    kinds = {(e.kind, e.channel) for e in checked.mask.events}
+    assert ("non_finite", "ACC_W1L_Z") in kinds and ("dropout_nan", "ACC_W1L_Z") in kinds
+
+
 def test_a_wide_csv_as_daq_software_writes_it(tmp_path):
     """Semicolons and decimal commas, time in ms, units in brackets or parentheses; an empty cell is no sample of
     that channel, a ``NaN`` cell a missing sample; anything else is refused naming its column and row."""
@@ -611,6 +676,20 @@ def test_a_wide_csv_as_daq_software_writes_it(tmp_path):
     with pytest.raises(RunFileError, match=r"time column 'time \[h\]': unit 'h' is not one of"):
         read_raw(bad)
 
+    # a file cut short mid-row, or a row that lost a cell, is refused naming the row (a blank cell keeps its
+    # separators, so it is no sample of that channel, not damage); so is a channel given by two columns
+    good = "# run_id = w2\ntime [s],ACC_W1L_Z [g],SPEED [m/s]\n0.0,0.1,10\n0.001,,\n0.002,0.3,\n"
+    bad.write_text(good + "0.003,0.4\n0.004,0.5,10\n")
+    with pytest.raises(RunFileError, match=r"bad.csv: data row 4 \(line 6\) has 2 field\(s\), the column header 3"):
+        read_raw(bad)
+    bad.write_text(good + "0.003,0.4")  # cut short, no final newline
+    with pytest.raises(RunFileError, match=r"data row 4 \(line 6\) has 2 field\(s\)"):
+        read_raw(bad)
+    bad.write_text(good.replace("\n", "\r\n"))
+    assert read_raw(bad)[0].channels["ACC_W1L_Z"].t.tolist() == [0.0, 0.002]
+    bad.write_text("time [s],ACC_W1L_Z [g],ACC_W1L_Z [g]\n0.0,0.1,0.3\n")
+    with pytest.raises(RunFileError, match=r"channel 'ACC_W1L_Z' is given by two columns"):
+        read_raw(bad)
 
 def test_a_run_estimated_from_a_wide_csv_equals_its_mdf4(tmp_path):
     """The synthetic run written as MDF 4 and converted to a wide CSV (every channel at its own rate, 17 digits)

@@ -340,3 +340,29 @@ def test_calibrated_angles_for_a_curve_the_line_lacks_are_refused_not_carried_as
         prepare(model, table, config=cfg)
     fm = prepare(model, table, line=line, config=EstimatorConfig(curve_contact_angles={"C1": {"any": (0.3, 0.03)}}))
     assert fm.config.curve_angles("C1", "leading", {"L": "L", "R": "R"}) == pytest.approx((-0.3, 0.03))
+
+
+def test_chainage_no_trackform_section_holds_is_named(tmp_path):
+    """A line whose trackform sections cover 0-500 m and 560-1000 m: a wheelset passing 480-600 m is told that
+    500-560 m takes the default trackform (the stretches it passes there, to the sample); a line covering it all,
+    or a trackform given for the whole run, says nothing."""
+    import json
+
+    from estimator import prepare, read_line
+    from estimator.workflow import _outside_trackforms
+    from test_estimator_synthetic import control_model, sensor_table
+
+    tfs = [{"from_m": 0, "to_m": 500, "trackform": "slab", "pad_stiffness_z": 150e6},
+           {"from_m": 560, "to_m": 1000, "trackform": "slab", "pad_stiffness_z": 150e6}]
+    (tmp_path / "line.json").write_text(json.dumps({"name": "M1", "trackform_sections": tfs}))
+    model, table = control_model(), sensor_table()
+    fm = prepare(model, table, line=read_line(tmp_path / "line.json"))
+    x = np.linspace(480.0, 600.0, 1201)
+    (msg,) = _outside_trackforms(fm, {1: x})
+    assert "wheelset 1 passes chainage 500.1-559.9 m, which no trackform section" in msg
+    assert "they cover 0-500 m, 560-1000 m" in msg and "default trackform" in msg
+    assert _outside_trackforms(fm, {1: np.linspace(10.0, 490.0, 50), 2: np.linspace(570.0, 990.0, 50)}) == []
+    from receptance import Trackform
+
+    assert _outside_trackforms(prepare(model, table, line=read_line(tmp_path / "line.json"), trackform=Trackform()),
+                               {1: x}) == []

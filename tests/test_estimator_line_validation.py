@@ -145,9 +145,32 @@ def test_unknown_or_malformed_trackform_fields_are_refused_with_the_valid_names(
     (dict(sections=[{"id": "S1", "from_m": True, "to_m": 100}]), ["section 'S1'", "'from_m' must be a number"]),
     (dict(sections=[{"id": "S1", "to_m": 100}]), ["section 'S1'", "'from_m' is missing"]),
     (dict(balises=[{"id": "B1", "chainage_m": "km 0+050"}]), ["balise 'B1'", "'chainage_m' must be a number"]),
+    (dict(format="something-else"), ["format 'something-else'", "'railmodal-line'"]),
+    (dict(version=99), ["version 99", "a newer toolkit"]),
+    (dict(version="1"), ["version '1'"]),
 ])
 def test_wrong_json_types_and_bad_numbers_are_named(tmp_path, change, named):
     _assert_refused(tmp_path, _with(**change), *named)
+
+
+def test_a_misspelt_key_is_refused_and_other_unknown_keys_are_named(tmp_path, caplog):
+    """``curvse`` would leave the line without its curves (contact angles 0 on every curve, indexes several dB
+    off): refused with the key it nearly is. A key unlike any the reader takes is kept and named in a warning;
+    an object holding nothing the estimate uses is warned about."""
+    line = _with()
+    line["curvse"] = line.pop("curves")
+    _assert_refused(tmp_path, line, "top-level key 'curvse'", "did you mean 'curves'?")
+    line = _with()
+    line["trackform_sectons"] = line.pop("trackform_sections")
+    _assert_refused(tmp_path, line, "'trackform_sectons'", "did you mean 'trackform_sections'?")
+    with caplog.at_level("WARNING", logger="estimator"):
+        d = read_line(_write(tmp_path, _with(operator="Metro X", format="railmodal-line", version=1)))
+    assert len(d.curves) == 1 and d.raw["operator"] == "Metro X"
+    assert "top-level key(s) ['operator'] are not part of a line description" in caplog.text
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="estimator"):
+        read_line(_write(tmp_path, {}, "empty.json"))
+    assert "holds none of curves, sections, trackforms" in caplog.text
 
 
 def test_a_key_given_twice_is_refused(tmp_path):

@@ -328,3 +328,9 @@ def test_a_run_folder_names_the_tables_it_does_not_take_as_runs(tmp_path, caplog
     with caplog.at_level(logging.WARNING, logger="estimator"):
         assert collect_runs([tmp_path]) == [str(tmp_path / "day" / "r1.mf4")]
     assert "2 Parquet/CSV file(s) not taken as runs" in caplog.text and "day/r2.parquet, trolley.csv" in caplog.text
+    # the same run given twice (and through its folder) is ingested once, and the repetition is said
+    caplog.clear()
+    r1 = tmp_path / "day" / "r1.mf4"
+    with caplog.at_level(logging.WARNING, logger="estimator"):
+        assert collect_runs([r1, tmp_path / "day" / ".." / "day" / "r1.mf4", tmp_path / "day"]) == [str(r1)]
+    assert caplog.text.count("is given more than once") == 2 and "ingested once" in caplog.text

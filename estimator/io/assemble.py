@@ -220,6 +220,9 @@ def _header(raw: RawRecording, source: str, direction: str | None) -> RunHeader:
         if not direction:
             raise RunFileError(f"{source}: the run header has no 'direction' ({DIRECTIONS}, relative to chainage); "
                                "give it with --direction")
+        if direction not in DIRECTIONS:
+            raise RunFileError(f"{source}: header direction must be one of {DIRECTIONS} (relative to chainage), got "
+                               f"{direction!r}; correct the header or give --direction")
     elif direction not in DIRECTIONS:
         raise RunFileError(f"direction must be one of {DIRECTIONS}, got {direction!r}")
     orientation = h.get("orientation", "") or "normal"
@@ -363,6 +366,7 @@ def assemble_run(raw: RawRecording, sensors: pd.DataFrame, source: str, fmt: str
     acc_rows = sensors[sensors["quantity"] == "acceleration"].reset_index(drop=True)
     rejected: list[QCEvent] = []
     present, rates, grids = [], {}, {}
+    unitless: list[str] = []
     for _, row in acc_rows.iterrows():
         name = str(row["name"])
         _unusable(raw, name, source, ChannelError)
@@ -374,11 +378,16 @@ def assemble_run(raw: RawRecording, sensors: pd.DataFrame, source: str, fmt: str
             continue
         ch = raw.channels[name]
         _unit_check(ch, row, source)
+        if not normalise_unit(ch.unit):
+            unitless.append(f"{name} ({row['unit']})")
         rates[name], grids[name] = sample_grid(ch, source)
         if grids[name][-1] + 1 > MAX_SAMPLES:
             raise ChannelError(f"{source}: channel {name!r} spans {grids[name][-1] + 1} samples; at most "
                                f"{MAX_SAMPLES}")
         present.append(row)
+    if unitless:
+        log.warning("%s: acceleration channel(s) %s carry no unit in the file: read in the sensor table's units, "
+                    "which the file cannot confirm", source, ", ".join(unitless))
     if not present:
         raise ChannelError(f"{source}: none of the acceleration channels of the sensor table "
                            f"{list(acc_rows['name'])} is in the file (it has {sorted(raw.channels)})")
@@ -396,13 +405,23 @@ def assemble_run(raw: RawRecording, sensors: pd.DataFrame, source: str, fmt: str
     keep = []
     for row in present:
         name = str(row["name"])
+        ch = raw.channels[name]
+        # a rate a little off (another clock) keeps the first samples in place and drifts: judged by where the
+        # channel's last sample falls on the run's time base, to the same GRID_ATOL as its first
+        drift = (ch.t[-1] - ch.t[0]) * fs_run - (grids[name][-1] - grids[name][0])
         if abs(rates[name] / fs_run - 1) > RATE_RTOL:
             msg = (f"channel {name!r} is sampled at {rates[name]:.6g} Hz but the run's accelerations are at "
                    f"{fs_run:.6g} Hz")
-            log.warning("%s: %s; channel rejected", source, msg)
-            rejected.append(QCEvent("wrong_rate", name, math.nan, math.nan, msg, "rejected"))
+        elif abs(drift) > GRID_ATOL:
+            msg = (f"channel {name!r} is sampled at {rates[name]:.7g} Hz, {1e6 * (rates[name] / fs_run - 1):+.0f} ppm "
+                   f"from the run's {fs_run:.7g} Hz: over its {ch.t[-1] - ch.t[0]:.1f} s it drifts {drift:+.2f} "
+                   f"samples ({1e3 * drift / fs_run:+.2f} ms) off the other accelerations' time base (limit "
+                   f"{GRID_ATOL:g} sample); not sampled simultaneously with them")
+        else:
+            keep.append(row)
             continue
-        keep.append(row)
+        log.warning("%s: %s; channel rejected", source, msg)
+        rejected.append(QCEvent("wrong_rate", name, math.nan, math.nan, msg, "rejected"))
     if len(keep) < 2:
         raise ChannelError(f"{source}: fewer than two acceleration channels are usable at {fs_run:g} Hz "
                            f"({[e.describe() for e in rejected]})")

@@ -14,7 +14,12 @@ low (inner) rail is ``R`` for a right curve and ``L`` for a left one.
 the entry (:class:`~estimator.errors.RunFileError`): stretches run towards
 increasing chainage and have a length; sections, curves and trackform
 sections may touch but not overlap (nested sections are not supported);
-a weld's or crossing's rail is ``L``, ``R`` or left out for both.
+a weld's or crossing's rail is ``L``, ``R`` or left out for both. A
+``format`` other than ``railmodal-line`` or a ``version`` newer than this
+reader's is refused; so is a top-level key that is a near miss of one it
+reads (``curvse``: the curves would be silently absent). Other unknown
+top-level keys are kept in ``raw`` and named in a warning, and a file that
+holds nothing the estimate uses is warned about.
 
 Trolley files (``trolley/<date>.csv``): ``chainage_m, rail, roughness_um``.
 """
@@ -419,6 +424,37 @@ def _positive(d: Mapping, keys: tuple[str, ...], src: str, default: float) -> fl
     return v
 
 
+#: the line description's format name and the newest version this reader reads
+LINE_FORMAT, LINE_VERSION = "railmodal-line", 1
+#: top-level keys read into the description, and those kept as information (the virtual line writes them)
+_LINE_KEYS = ("curves", "sections", "trackforms", "trackform_sections", "balises", "switches", "welds", "length_m",
+              "length", "sleeper_spacing_m", "sleeper_spacing", "name", "id")
+_LINE_INFO_KEYS = ("format", "version", "stations", "speed_limits", "notes", "note", "description", "comment")
+
+
+def _top_level(d: Mapping, src: str) -> None:
+    """Refuse another format, a newer version and a near-miss key; warn of other unknown keys (module docstring)."""
+    fmt = d.get("format", LINE_FORMAT)
+    if fmt != LINE_FORMAT:
+        raise RunFileError(f"{src}: format {fmt!r}; this reader reads {LINE_FORMAT!r} line descriptions")
+    version = d.get("version", LINE_VERSION)
+    if not (isinstance(version, (int, float)) and not isinstance(version, bool) and 1 <= version <= LINE_VERSION):
+        raise RunFileError(f"{src}: version {version!r}; this reader reads {LINE_FORMAT!r} versions 1 to "
+                           f"{LINE_VERSION} (a newer toolkit wrote it?)")
+    known = _LINE_KEYS + _LINE_INFO_KEYS
+    unknown = [k for k in d if k not in known]
+    for k in unknown:
+        near = difflib.get_close_matches(str(k).lower(), _LINE_KEYS, n=1, cutoff=0.75)
+        if near and near[0] not in d:
+            raise RunFileError(f"{src}: top-level key {k!r} is not one a line description takes; did you mean "
+                               f"{near[0]!r}? (as written, the file would be read without its {near[0]})")
+    if unknown:
+        log.warning("%s: top-level key(s) %s are not part of a line description; kept, not used", src, unknown)
+    if not any(k in d for k in _LINE_KEYS[:7]):
+        log.warning("%s: holds none of %s; the estimate uses straight track and the default trackform everywhere",
+                    src, ", ".join(_LINE_KEYS[:7]))
+
+
 def read_line(path) -> LineDescription:
     """Read and check ``line.json`` (field contract, module docstring); unknown top-level keys are kept in ``raw``.
 
@@ -461,6 +497,7 @@ def read_line(path) -> LineDescription:
     if not isinstance(d, dict):
         raise RunFileError(f"{p}: a line description is a JSON object")
     src = str(p)
+    _top_level(d, src)
 
     curves = [_curve(c, i, src) for i, c in enumerate(_entries(d, ("curves",), src)[1])]
     _unique_ids([(c.id, c.from_m, c.to_m) for c in curves], src, "curve",

@@ -42,6 +42,25 @@ def sniff_csv(path: Path, head: bytes) -> bool:
     return bool(lines) and all(c in lines[0].replace(" ", "") for c in ("channel", "t_s", "value"))
 
 
+#: cells read as a missing sample (NaN), not as damage
+NAN_WORDS = frozenset({"", "nan", "-nan", "+nan", "na", "n/a", "null", "none"})
+
+
+def _numbers(cells: pd.Series, path: Path, channel, column: str) -> np.ndarray:
+    """A column as floats; a cell that is neither a number nor a missing-value word is refused by row (coerced
+    to NaN it would pass as a logger's dropout and hide a damaged file)."""
+    values = pd.to_numeric(cells, errors="coerce")
+    bad = (values.isna() & cells.notna()).to_numpy().copy()
+    if bad.any():
+        bad[bad] = ~cells[bad].astype(str).str.strip().str.lower().isin(NAN_WORDS).to_numpy()
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise RunFileError(f"{path}: channel {channel!r}, column {column!r}, data row {int(cells.index[k]) + 1} "
+                           f"(counted from 1 after the column header): {cells.iloc[k]!r} is not a number"
+                           + (f" ({int(bad.sum())} such cells)" if bad.sum() > 1 else ""))
+    return values.to_numpy(float)
+
+
 def _from_frame(df: pd.DataFrame, header: Mapping[str, str], path: Path) -> RawRecording:
     missing = [c for c in COLUMNS[:3] if c not in df.columns]
     if missing:
@@ -56,8 +75,8 @@ def _from_frame(df: pd.DataFrame, header: Mapping[str, str], path: Path) -> RawR
                            "after the column header); their samples cannot be given to any channel")
     channels = {}
     for name, g in df.groupby("channel", sort=False):
-        t = pd.to_numeric(g["t_s"], errors="coerce").to_numpy(float)
-        v = pd.to_numeric(g["value"], errors="coerce").to_numpy(float)
+        t = _numbers(g["t_s"], path, name, "t_s")
+        v = _numbers(g["value"], path, name, "value")
         if np.isnan(t).any():
             raise RunFileError(f"{path}: channel {name!r} has rows without a time stamp t_s")
         order = np.argsort(t, kind="stable")
@@ -112,7 +131,8 @@ def read_csv_header(path: Path) -> tuple[dict[str, str], int]:
 def read_csv(path: Path) -> RawRecording:
     header, skip = read_csv_header(path)
     try:
-        df = pd.read_csv(path, skiprows=skip, encoding="utf-8-sig", dtype={"channel": str, "unit": str})
+        df = pd.read_csv(path, skiprows=skip, encoding="utf-8-sig", dtype={"channel": str, "unit": str},
+                         low_memory=False)
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
         raise RunFileError(f"{path}: not a readable CSV run table ({exc})") from None
     df.columns = [str(c).strip() for c in df.columns]

@@ -76,7 +76,12 @@ def read_wide_csv(path: Path) -> RawRecording:
         df = pd.read_csv(path, skiprows=skip, sep=sep, encoding="utf-8-sig", dtype=str, keep_default_na=False)
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
         raise RunFileError(f"{path}: not a readable CSV run table ({exc})") from None
-    cols = [str(c) for c in df.columns]
+    # pandas renames a repeated column ("x.1") and pads a short row with blanks (a channel without a sample
+    # there): both are judged on the file's own text
+    cols = [c.strip() for c in next(csv.reader([first.rstrip("\r\n")], delimiter=sep))]
+    if len(cols) != df.shape[1]:
+        raise RunFileError(f"{path}: the column header has {len(cols)} fields but the table {df.shape[1]} columns")
+    _ragged_rows(path, skip + 1, sep, len(cols))
     t_name, t_unit = _name_unit(cols[0])
     if t_name.lower() not in TIME_NAMES or len(cols) < 2:
         raise RunFileError(f"{path}: a wide CSV run file starts with a time column ({', '.join(TIME_NAMES)}) and "
@@ -102,6 +107,28 @@ def read_wide_csv(path: Path) -> RawRecording:
     if not channels or all(c.t.size == 0 for c in channels.values()):
         raise RunFileError(f"{path}: no samples")
     return RawRecording(channels, dict(header))
+
+
+def _ragged_rows(path: Path, header_lines: int, sep: str, n_fields: int) -> None:
+    """Refuse a data row with fewer or more fields than the column header (a file cut short, a lost cell).
+
+    A blank cell keeps its separators (``1.0,,2.0``), so a short row is a damaged one, not a missing sample.
+    Counted on the bytes (numeric run tables quote nothing), at the speed of the reading itself.
+    """
+    raw = np.frombuffer(path.read_bytes(), np.uint8)
+    newline = np.flatnonzero(raw == ord("\n"))
+    ends = np.append(newline, raw.size) if raw.size and raw[-1] != ord("\n") else newline
+    starts = np.concatenate([[0], newline + 1])[:ends.size]
+    seps = np.concatenate([[0], np.cumsum(raw == ord(sep))])
+    count = seps[ends] - seps[starts]
+    length = ends - starts - (raw[np.maximum(ends - 1, 0)] == ord("\r"))
+    data = np.arange(ends.size) >= header_lines
+    bad = np.flatnonzero(data & (length > 0) & (count != n_fields - 1))
+    if bad.size:
+        k = int(bad[0])
+        raise RunFileError(f"{path}: data row {k - header_lines + 1} (line {k + 1}) has {int(count[k]) + 1} field(s), "
+                           f"the column header {n_fields}: the file is cut short or the row lost cells"
+                           + (f" ({bad.size} such rows)" if bad.size > 1 else ""))
 
 
 def _numbers(cells: pd.Series, path: Path, column: str, decimal_comma: bool, *, allow_blank: bool) -> np.ndarray:

@@ -465,7 +465,14 @@ def collect_runs(items: Sequence, limit: int = MAX_RUNS_PER_BATCH) -> list[str]:
             raise FileNotFoundError(f"run file or folder {p} does not exist")
         if len(out) > limit:
             raise MonitoringError(f"more than {limit} run files; ingest them in batches")
-    out = sorted(dict.fromkeys(out))
+    seen: dict[Path, str] = {}
+    for f in out:
+        key = Path(f).resolve()
+        if key in seen:
+            log.warning("run file %s is given more than once (also as %s): ingested once", f, seen[key])
+        else:
+            seen[key] = f
+    out = sorted(seen.values())
     if not out:
         raise MonitoringError("no run file given")
     return out
