@@ -583,10 +583,42 @@ def _pinned_pinned(fm: FieldModel, lo: float, hi: float) -> list[float]:
     return fm.cache[key]
 
 
+def _dead_channels(run: Run) -> list[str]:
+    """Acceleration channels quality control masked everywhere: they carry nothing, and inverted together with a
+    live channel (the half model's two sides, a wheelset's rows) they would mask it too."""
+    if run.mask is None or run.mask.masked.shape[1] == 0:
+        return []
+    return [name for i, name in enumerate(run.names) if run.mask.masked[i].all()]
+
+
+def _grouped(skipped: list[str], everyone: bool = False) -> str:
+    """``"wheelset W, model: reason"`` lines as each reason once with whom it stopped (``everyone``: a reason
+    shared by all is said so)."""
+    by_reason: dict[str, list[str]] = {}
+    for m in skipped:
+        who, _, reason = m.partition(": ")
+        by_reason.setdefault(reason, []).append(who.replace(", ", "/"))
+    return "; ".join((f"all {len(who)} wheelset/model combinations" if everyone and len(by_reason) == 1 else
+                      ", ".join(who)) + f": {reason}" for reason, who in by_reason.items())
+
+
 def _nothing_estimated(run: Run, skipped: list[str]) -> NoValidDataError:
-    why = "; ".join(skipped) or "every sample masked"
+    """The error when no wheelset/model is left: each reason once with whom it stopped, and the quality-control
+    findings that masked most of the run (what to look at first; the log lists each finding)."""
+    why = _grouped(skipped, everyone=True) or "every sample masked"
+    t = run.t
+    cover = []
+    for kind in sorted({e.kind for e in run.mask.events} if run.mask is not None else ()):
+        hit = np.zeros(t.size, bool)
+        for e in run.mask.events:
+            if e.kind == kind and e.action == "masked" and np.isfinite(e.t_start):
+                hit |= (t >= e.t_start) & (t <= e.t_end)
+        if hit.mean() >= 0.01:
+            cover.append((float(hit.mean()), kind))
+    worst = ", ".join(f"{kind} {100 * share:.0f} %" for share, kind in sorted(cover, reverse=True)[:4])
     return NoValidDataError(f"{run.source}: nothing could be estimated ({why}; masked share "
-                            f"{100 * run.masked_share['run']:.0f} %)")
+                            f"{100 * run.masked_share['run']:.0f} %" + (f", mostly by {worst} of the run" if worst
+                                                                         else "") + "; each finding is logged)")
 
 
 # --------------------------------------------------------------------------- the workflow
@@ -652,7 +684,8 @@ def _why_no_rails(run: Run, wheelsets: list[int], skipped: list[str]) -> str:
             if share.get(name, 0.0) >= 0.5:
                 kinds = sorted({e.kind for e in run.mask.events if e.channel == name}) if run.mask else []
                 parts.append(f"{name} masked over {share[name]:.0%} of the run ({', '.join(kinds) or 'masked'})")
-        parts += [m for m in skipped if m.startswith(f"wheelset {w},")]
+        mine = _grouped([m for m in skipped if m.startswith(f"wheelset {w},")])
+        parts += [mine] if mine else []
     return f" because {'; '.join(parts)}" if parts else ""
 
 
@@ -750,16 +783,23 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
     plans_by_w: dict[int, list] = {}
     edges: dict[int, float] = {}
     chains: dict[int, np.ndarray] = {}  # each wheelset's chainage per sample (its transfer classes, and coupling's)
+    dead = _dead_channels(run)
+    if dead:
+        _say_once(run, steps, f"channel(s) {', '.join(dead)} masked over the whole run: left out of every model "
+                              "(a model that needs them is not estimated; the other channels' models are)")
     for w in run.wheelsets:
         chans = run.wheelset_channels(w)
+        chans = chans[~chans["name"].isin(dead)].reset_index(drop=True)
         chain_w = chains[w] = track.chainage_at(t_run) + orient.wheelset_offset_sign[w] * wb_guess / 2
         plans = []
         for kind in cfg.models:
             try:
                 rows, _ = model_channels(kind, chans)
             except ChannelError as exc:
-                skipped.append(f"wheelset {w}, {kind}: {exc}")
-                log.warning("%s: wheelset %d, model %s not estimated: %s", run.source, w, kind, exc)
+                gone = [n for n in run.wheelset_channels(w)["name"] if n in dead]
+                why = f"{exc}" + (f" ({', '.join(gone)} masked over the whole run)" if gone else "")
+                skipped.append(f"wheelset {w}, {kind}: {why}")
+                log.warning("%s: wheelset %d, model %s not estimated: %s", run.source, w, kind, why)
                 continue
             sub = chans.loc[rows].reset_index(drop=True)
             classes = _class_weights(fm, kind, chain_w, orient, orient.role(w))

@@ -160,12 +160,39 @@ def test_a_run_with_nothing_valid_is_a_named_error(tmp_path):
 
     sr = make_run(tmp_path, control_model(), duration_s=20, faults=kill, name="dead")
     fm = prepare(control_model(), sensor_table(), config=EstimatorConfig(models=("vertical",)))
-    with pytest.raises(NoValidDataError, match="dead"):
+    # each reason once with whom it stopped, and what masked the run
+    with pytest.raises(NoValidDataError, match=r"dead.mf4: nothing could be estimated \(wheelset 1/vertical: .* "
+                                               r"\(ACC_W1L_Z, ACC_W1R_Z, ACC_W1R_Y masked over the whole run\); "
+                                               r"wheelset 2/vertical: .*; masked share 100 %, mostly by dropout_nan "
+                                               r"100 %, low_speed"):
         estimate_run(sr.path, fm)
 
 
 def test_zero_speed_run_is_a_named_error(tmp_path):
     sr = make_run(tmp_path, control_model(), duration_s=20, v_cruise=0.0, name="still")
     fm = prepare(control_model(), sensor_table(), config=EstimatorConfig(models=("vertical",)))
-    with pytest.raises(NoValidDataError, match="still"):
+    with pytest.raises(NoValidDataError, match=r"still.mf4: nothing could be estimated .*masked share 100 %, "
+                                               r"mostly by standstill 100 % of the run; each finding is logged\)"):
         estimate_run(sr.path, fm)
+
+
+def test_a_channel_dead_over_the_whole_run_leaves_the_other_sides_estimate(tmp_path):
+    """ACC_W1L_Z NaN over the whole run: inverted with it, wheelset 1's half model (both sides in one inversion)
+    would be masked everywhere and the wheelset lost. Left out, wheelset 1 is estimated on rail R by the half model
+    (within 1 dB of the same run with the channel alive, 30-100 mm), its vertical model is not (it needs both
+    sides), and the step says which channel was left out."""
+    def kill(ch):
+        t, v, u = ch["ACC_W1L_Z"]
+        ch["ACC_W1L_Z"] = (t, np.full_like(v, np.nan), u)
+
+    cfg = EstimatorConfig(models=("half", "vertical"), wheelbase_m=2.2)
+    fm = prepare(control_model(), sensor_table(), config=cfg)
+    dead = estimate_run(make_run(tmp_path, control_model(), duration_s=20, faults=kill, name="deadL").path, fm)
+    alive = estimate_run(make_run(tmp_path, control_model(), duration_s=20, name="alive").path, fm)
+    assert (1, "vertical") not in dead.profiles and (2, "vertical") in dead.profiles
+    p, q = dead.profile(1, "half"), alive.profile(1, "half")
+    assert p.rails == ("R",) and q.rails == ("L", "R")
+    assert any("ACC_W1L_Z masked over the whole run: left out of every model" in s for s in dead.processing)
+    b = list(p.indexes.bands_mm).index((30.0, 100.0))
+    lp, lq = (np.nanmedian(x.indexes.pk_pk[b, x.rail_row("R")]) for x in (p, q))
+    assert abs(20 * np.log10(lp / lq)) < 1.0
