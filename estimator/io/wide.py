@@ -29,14 +29,13 @@ import pandas as pd
 
 from estimator.errors import RunFileError
 from estimator.io.registry import RawChannel, RawRecording
-from estimator.io.tabular import read_csv_header
+from estimator.io.tabular import NAN_WORDS, read_csv_header
 
 __all__ = ["sniff_wide_csv", "read_wide_csv", "write_wide_csv", "TIME_NAMES"]
 
 TIME_NAMES = ("t", "t_s", "time", "zeit")
 _TIME_UNITS = {"": 1.0, "s": 1.0, "sec": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6}
 _HEAD = re.compile(r"^\s*(?P<name>.*?)\s*(?:[\[(]\s*(?P<unit>[^\])]*?)\s*[\])])?\s*$")
-_NAN_WORDS = {"nan", "NaN", "NAN", "-nan", "+nan"}
 
 
 def _name_unit(column: str) -> tuple[str, str]:
@@ -136,7 +135,7 @@ def _numbers(cells: pd.Series, path: Path, column: str, decimal_comma: bool, *, 
     text = cells.str.strip()
     if decimal_comma:
         text = text.str.replace(",", ".", regex=False)
-    nan_word = text.isin(_NAN_WORDS)
+    nan_word = text.str.lower().isin(NAN_WORDS - {""})  # a blank cell is no sample, judged by the caller
     values = pd.to_numeric(text.where(~nan_word, "nan"), errors="coerce").to_numpy(float)
     bad = np.isnan(values) & ~nan_word.to_numpy()
     if not allow_blank:
