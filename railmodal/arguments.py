@@ -31,7 +31,7 @@ import math
 import os
 from pathlib import Path
 
-__all__ = ["add_geometry_argument", "bounded_int", "bounded_float", "existing_file", "existing_folder", "output_folder", "band_action",
+__all__ = ["add_geometry_argument", "iso_date", "bounded_int", "bounded_float", "existing_file", "existing_folder", "output_folder", "band_action",
            "calibration_path", "check_choice_list"]
 
 
@@ -141,6 +141,21 @@ def existing_folder(option: str, role: str, *, file_ok: bool = False):
         return p
 
     parse.__name__ = "existing folder"
+    return parse
+
+
+def iso_date(option: str):
+    """An argparse type: a ``YYYY-MM-DD`` calendar date, returned in that form (2024-13-01 is refused at parsing,
+    before any work, rather than found missing after it)."""
+    def parse(text: str) -> str:
+        import datetime as _dt
+
+        try:
+            return _dt.date.fromisoformat(text).isoformat()
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{option} must be a date YYYY-MM-DD, got {text!r}") from None
+
+    parse.__name__ = "date"
     return parse
 
 

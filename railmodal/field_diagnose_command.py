@@ -15,7 +15,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from railmodal.arguments import bounded_float, bounded_int, calibration_path, existing_file, output_folder
+from railmodal.arguments import bounded_float, bounded_int, calibration_path, existing_file, iso_date, output_folder
 
 __all__ = ["add_field_diagnose_command", "MAX_RUN_FILES"]
 
@@ -107,7 +107,7 @@ def add_field_diagnose_command(sub) -> None:
                         "calibration day is also reported (e.g. where the track is known to have changed); "
                         "repeatable, at most "
                         f"{MAX_VALIDATION_STRETCHES}")
-    p.add_argument("--calibration-date", default=None,
+    p.add_argument("--calibration-date", default=None, type=iso_date("--calibration-date"),
                    help="survey day whose runs calibrate (default: the first reference's); other days validate")
     p.add_argument("--direction", choices=("forward", "backward"), default=None)
     p.add_argument("--wheelbase", default=None, type=bounded_float("--wheelbase", 0.5, 10.0, unit="m"),

@@ -20,12 +20,16 @@ per-file replacement, ``--out`` through a temporary folder renamed at the end).
 from __future__ import annotations
 
 import argparse
+import logging
 import math
 import sys
 import time
 from pathlib import Path
 
-from railmodal.arguments import band_action, bounded_float, bounded_int, calibration_path, existing_file, output_folder
+from railmodal.arguments import (band_action, bounded_float, bounded_int, calibration_path, existing_file, iso_date,
+                                 output_folder)
+
+log = logging.getLogger("estimator")
 
 __all__ = ["add_monitor_commands"]
 
@@ -56,19 +60,6 @@ def _store_folder(option: str):
         return p
 
     parse.__name__ = "store folder"
-    return parse
-
-
-def _iso_date(option: str):
-    def parse(text: str) -> str:
-        import datetime as _dt
-
-        try:
-            return _dt.date.fromisoformat(text).isoformat()
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{option} must be a date YYYY-MM-DD, got {text!r}") from None
-
-    parse.__name__ = "date"
     return parse
 
 
@@ -198,7 +189,14 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 
     check_output_folder(args.out)
     store = MonitoringStore(args.store)
-    results = [compare_reference(store, t, line=args.line_id, model_hash=args.model_version) for t in args.trolley]
+    trolleys = {}
+    for t in args.trolley:  # the same record twice would count its bands twice in the tables
+        key = Path(t).resolve()
+        if key in trolleys:
+            log.warning("trolley file %s is given more than once (also as %s): compared once", t, trolleys[key])
+        trolleys.setdefault(key, t)
+    results = [compare_reference(store, t, line=args.line_id, model_hash=args.model_version)
+               for t in trolleys.values()]
     with staged_output(args.out) as tmp:
         tables = []
         for c in results:
@@ -296,7 +294,7 @@ def add_monitor_commands(sub) -> None:
                      help="line.json for the sections' extents (trends per section)")
     mon.add_argument("--line-id", default=None, help="line in the store (default: the only one)")
     mon.add_argument("--model-version", default=None, help="model version (hash prefix; default: the last processed)")
-    mon.add_argument("--as-of", default=None, type=_iso_date("--as-of"),
+    mon.add_argument("--as-of", default=None, type=iso_date("--as-of"),
                      help="YYYY-MM-DD: the line as known on that day (survey days up to it: the forecast made then)")
     mon.add_argument("--calibration-trolley", default=None,
                      type=existing_file("--calibration-trolley", "trolley record (CSV)"),

@@ -8,6 +8,7 @@ naming the option or file, and nothing is written.
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pandas as pd
@@ -100,6 +101,24 @@ def test_calibration_file_round_trip_and_refusals(tmp_path, campaign):
     p.write_text(json.dumps(d))
     with pytest.raises(CalibrationFileError, match="format version 99"):
         load_calibration(tmp_path / "cal")
+    # hand-edited or damaged states are refused naming the file and the entry, not applied or half-read
+    good = json.loads(p.read_text()) | {"format_version": 1}
+    tc = good["state"]["trackform_changes"][0]
+    for change, named in (({"state": "garbage"}, "'state' must be an object of field effects, got str"),
+                          ({"trackform_changes": [tc | {"factors": {"banana": 2.0}}]},
+                           "trackform_changes[0]: factor 'banana' is not one of"),
+                          ({"trackform_changes": [tc | {"factors": {"pad_stiffness": -4.5}}]},
+                           "factor 'pad_stiffness' = -4.5 must be a positive number"),
+                          ({"trackform_changes": [tc | {"from_m": 700, "to_m": 600}]},
+                           "the stretch 700-600 m must run towards increasing chainage"),
+                          ({"sensor_offsets": [{"channel": "ACC_W1L_Z", "offset_m": [0.0, 5.0, 0.0]}]},
+                           "sensor_offsets of 'ACC_W1L_Z'"),
+                          ({"trackform_changes": [{"from_m": 1}]}, "field state unreadable (an entry lacks"),
+                          ({"supports": "banana"}, "supports must be 'continuous' or 'discrete', got 'banana'")):
+        bad = good | change if "state" in change else good | {"state": good["state"] | change}
+        p.write_text(json.dumps(bad))
+        with pytest.raises(CalibrationFileError, match=re.escape(f"{p}: ") + ".*" + re.escape(named)):
+            load_calibration(tmp_path / "cal")
 
 
 @pytest.mark.slow

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import multiprocessing as mp
 import os
+import re
 
 import numpy as np
 import pandas as pd
@@ -43,6 +44,39 @@ def test_re_ingest_replaces_rows_and_never_duplicates(tmp_path):
     assert len(w[w["run_id"] == "r1"]) == 50 and len(w) == 150
     assert not (tmp_path / "store" / "windows" / "line=line1" / "section=s2" / "date=2024-03-04" /
                 "r1__m1.parquet").exists()
+
+
+def test_a_file_the_store_did_not_write_is_refused_by_name(tmp_path):
+    """A copy of a run's file under another name (read as a second model version, or averaged in twice), a file
+    in a partition whose date is no calendar date, a truncated file and a foreign table: each refused by
+    :meth:`MonitoringStore.verify` naming the file; the store as written passes."""
+    import shutil
+
+    st = MonitoringStore(tmp_path / "store")
+    st.write("line1", "r1", "m1", run_tables("r1", "2024-03-04"))
+    st.write("line1", "r2", "m1", run_tables("r2", "2024-03-04"))
+    assert st.verify() == 8  # runs and windows: one file per run, section and table
+    part = tmp_path / "store" / "windows" / "line=line1" / "section=s1"
+    good = part / "date=2024-03-04" / "r1__m1.parquet"
+    for bad, why in ((good.with_name("r1__m1_copy.parquet"), "its rows are of model version(s) ['m1'], its name "
+                                                             "says 'm1_copy'"),
+                     (good.with_name("copy of r1.parquet"), "not a name the store writes"),
+                     (part / "date=2024-02-30" / "r1__m1.parquet", "partition date '2024-02-30' is not a calendar "
+                                                                   "date")):
+        bad.parent.mkdir(exist_ok=True)
+        shutil.copy(good, bad)
+        with pytest.raises(StoreError, match=re.escape(f"{bad}: {why}")):
+            st.verify()
+        bad.unlink()
+    bad = good.with_name("r3__m1.parquet")
+    bad.write_bytes(good.read_bytes()[:200])
+    with pytest.raises(StoreError, match=re.escape(f"{bad}: not a readable Parquet file")):
+        st.verify()
+    pd.DataFrame({"a": [1.0]}).to_parquet(bad)
+    with pytest.raises(StoreError, match=re.escape(f"{bad}: no model_hash column")):
+        st.verify()
+    bad.unlink()
+    assert st.verify() == 8
 
 
 def test_two_model_versions_side_by_side(tmp_path):
@@ -334,3 +368,40 @@ def test_a_run_folder_names_the_tables_it_does_not_take_as_runs(tmp_path, caplog
     with caplog.at_level(logging.WARNING, logger="estimator"):
         assert collect_runs([r1, tmp_path / "day" / ".." / "day" / "r1.mf4", tmp_path / "day"]) == [str(r1)]
     assert caplog.text.count("is given more than once") == 2 and "ingested once" in caplog.text
+
+
+def test_a_date_that_is_no_calendar_day_is_refused_at_writing(tmp_path):
+    """2024-02-30 has the form YYYY-MM-DD: stored as a survey day it would break every later reading of the days
+    (the ingest's header check, estimator.monitoring.workflow._is_date, and the store's own partition check)."""
+    from estimator.monitoring.workflow import _is_date
+
+    assert _is_date("2024-02-29") and not _is_date("2024-02-30") and not _is_date("2023-02-29")
+    assert not _is_date("yesterday") and not _is_date("2024-2-3")
+    st = MonitoringStore(tmp_path / "store")
+    with pytest.raises(StoreError, match=r"date must be a YYYY-MM-DD calendar date .* got '2024-02-30'"):
+        st.write("line1", "r1", "m1", run_tables("r1", "2024-02-30"))
+    assert st.files("windows") == [] and st.files("runs") == []
+
+
+def test_a_trolley_record_named_with_no_calendar_date_is_refused_and_one_rail_is_said(tmp_path, caplog):
+    """The survey day is read from the trolley file's name: 2024-13-45 is refused naming the file (not a bare
+    date error); a record of one rail reads, and the warning says the comparison covers that rail alone."""
+    import logging
+
+    from estimator.monitoring.errors import TrolleyReferenceError
+    from estimator.monitoring.reference import read_trolley_record
+
+    x = np.arange(0.0, 50.0, 0.005)
+    rows = pd.DataFrame({"chainage_m": np.tile(x, 2), "rail": np.repeat(["L", "R"], x.size),
+                         "roughness_um": np.tile(5.0 * np.sin(2 * np.pi * x / 0.05), 2)})
+    bad = tmp_path / "2024-13-45.csv"
+    rows.to_csv(bad, index=False)
+    with pytest.raises(TrolleyReferenceError, match=re.escape(f"{bad}: the name's date '2024-13-45' is not a "
+                                                              "calendar date")):
+        read_trolley_record(bad)
+    one = tmp_path / "2024-03-04.csv"
+    rows[rows["rail"] == "R"].to_csv(one, index=False)
+    with caplog.at_level(logging.WARNING, logger="estimator"):
+        rec = read_trolley_record(one)
+    assert rec.rails == ("R",) and rec.date == "2024-03-04"
+    assert "holds rail R only: the comparison, and a calibration from it, covers that rail alone" in caplog.text

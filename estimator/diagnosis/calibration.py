@@ -76,12 +76,55 @@ def load_calibration(folder) -> tuple[FieldState, dict]:
     model = p.parent / str(doc.get("model_file", ""))
     if model.is_file() and (mh := file_hash(model)) != doc.get("model_hash"):
         raise CalibrationFileError(f"{p}: the model file {model.name} is not the one calibrated (hash "
-                                   f"{mh} != {doc.get('model_hash')})")
+                                   f"{mh} != {doc.get('model_hash')}): replaced, edited or damaged since")
+    if not isinstance(doc.get("state"), dict):
+        raise CalibrationFileError(f"{p}: 'state' must be an object of field effects, got "
+                                   f"{type(doc.get('state')).__name__}")
     try:
         state = FieldState.from_dict(doc["state"])
-    except (KeyError, TypeError, ValueError) as exc:
-        raise CalibrationFileError(f"{p}: field state unreadable ({exc})") from exc
+    except KeyError as exc:
+        raise CalibrationFileError(f"{p}: field state unreadable (an entry lacks {exc})") from None
+    except (TypeError, ValueError, AttributeError) as exc:
+        raise CalibrationFileError(f"{p}: field state unreadable ({exc})") from None
+    _check_state(state, p)
     return state, doc
+
+
+#: a sensor offset beyond this is not a placement error but another sensor or a unit slip [m]
+MAX_SENSOR_OFFSET_M = 0.5
+
+
+def _check_state(state: FieldState, p: Path) -> None:
+    """Refuse a state no diagnosis writes, naming the file and the entry (a hand-edited or damaged file)."""
+    import math
+
+    from estimator.diagnosis.state import TRACKFORM_FACTORS
+
+    if state.supports not in ("continuous", "discrete"):
+        raise CalibrationFileError(f"{p}: supports must be 'continuous' or 'discrete', got {state.supports!r}")
+    for i, c in enumerate(state.trackform_changes):
+        where = f"{p}: trackform_changes[{i}]"
+        if not (math.isfinite(c.from_m) and math.isfinite(c.to_m) and c.from_m < c.to_m):
+            raise CalibrationFileError(f"{where}: the stretch {c.from_m:g}-{c.to_m:g} m must run towards increasing "
+                                       "chainage")
+        for name, mult in c.factors:
+            if name not in TRACKFORM_FACTORS:
+                raise CalibrationFileError(f"{where}: factor {name!r} is not one of {sorted(TRACKFORM_FACTORS)}")
+            if not (math.isfinite(mult) and mult > 0):
+                raise CalibrationFileError(f"{where}: factor {name!r} = {mult:g} must be a positive number")
+    for ch, *off in state.sensor_offsets:
+        if not all(math.isfinite(v) and abs(v) <= MAX_SENSOR_OFFSET_M for v in off):
+            raise CalibrationFileError(f"{p}: sensor_offsets of {ch!r}: {[round(v, 4) for v in off]} m; a placement "
+                                       f"error is finite and within {MAX_SENSOR_OFFSET_M:g} m")
+    for curve, role, *g in state.curve_angles:
+        if not all(math.isfinite(v) and abs(v) < math.pi / 2 for v in g):
+            raise CalibrationFileError(f"{p}: curve_angles of curve {curve!r} ({role}): contact angles must be finite "
+                                       "and within ±90°")
+    if state.wheel_load_N is not None and not (math.isfinite(state.wheel_load_N) and state.wheel_load_N > 0):
+        raise CalibrationFileError(f"{p}: wheel_load_N {state.wheel_load_N:g} must be a positive number")
+    for value, what in ((state.support_spacing_m, "support_spacing_m"), (state.loss_reference_hz, "loss_reference_hz")):
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise CalibrationFileError(f"{p}: {what} {value:g} must be a positive number")
 
 
 def calibration_for_model(folder, model_file) -> tuple[FieldState, dict]:

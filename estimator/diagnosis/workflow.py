@@ -296,9 +296,21 @@ def run_field_diagnosis(runs: Sequence, references: Sequence, site: tuple[float,
                           "direction": orient.direction, "segments": len(segs) - n_before,
                           "wheelbase_m": est.wheelbase_m})
     ev = Evidence(tuple(segs), band_table, np.array(cal, bool), (lo, hi), tuple(rejected))
+    have = (min(s.from_m for s in segs), max(s.to_m for s in segs)) if segs else None
     if not ev.calibration.any():
+        where = (f"; the segments of every day cover {have[0]:g}-{have[1]:g} m" if have else
+                 "; no segment on any day")
         raise ReferenceCoverageError(f"no usable segment of {cfg.segment_m:g} m inside the site {lo:g}-{hi:g} m on "
-                                     f"{cal_date} ({len(rejected)} rejection(s): {'; '.join(rejected[:3])})")
+                                     f"{cal_date}{where} ({len(rejected)} rejection(s): {'; '.join(rejected[:3])})")
+    c_lo = min(s.from_m for s, c in zip(segs, cal) if c)
+    c_hi = max(s.to_m for s, c in zip(segs, cal) if c)
+    if c_lo > lo + cfg.segment_m or c_hi < hi - cfg.segment_m:
+        log.warning("site %g-%g m: the runs and the reference of %s give segments on %g-%g m of it only; the "
+                    "calibration rests on that", lo, hi, cal_date, c_lo, c_hi)
+    for a, b in stretches:
+        if have is None or b <= have[0] or a >= have[1]:
+            log.warning("validation stretch %g-%g m lies outside every day's segments (%s): not evaluated", a, b,
+                        f"{have[0]:g}-{have[1]:g} m" if have else "none")
     timings["evidence"] = time.perf_counter() - t0
     # ---- compare, diagnose
     t0 = time.perf_counter()

@@ -24,6 +24,7 @@ reference. :func:`compare_reference`:
 
 from __future__ import annotations
 
+import datetime as _dt
 import logging
 import math
 import re
@@ -82,7 +83,16 @@ def read_trolley_record(path, date: str | None = None) -> TrolleyRecord:
     if date is None:
         m = _DATE_IN_NAME.search(p.name)
         date = m.group(1) if m else ""
+        if date:
+            try:
+                _dt.date.fromisoformat(date)
+            except ValueError:
+                raise TrolleyReferenceError(f"{p}: the name's date {date!r} is not a calendar date (the survey day "
+                                            "is read from the name, YYYY-MM-DD)") from None
     rails = tuple(sorted(df["rail"].unique()))
+    if len(rails) == 1:
+        log.warning("%s: holds rail %s only: the comparison, and a calibration from it, covers that rail alone", p,
+                    rails[0])
     steps = [np.median(np.diff(g["chainage_m"].to_numpy())) for _, g in df.groupby("rail") if len(g) > 1]
     if not steps or not np.all(np.isfinite(steps)) or min(steps) <= 0:
         raise TrolleyReferenceError(f"{p}: a trolley record needs increasing chainages on each rail")
@@ -176,6 +186,7 @@ def compare_reference(store, trolley, *, line: str | None = None, model_hash: st
     from estimator.monitoring.workflow import DayReference, _pick_version
 
     st = store if isinstance(store, MonitoringStore) else MonitoringStore(store)
+    st.verify()  # a file the store did not write is refused before it is compared
     est_cfg = estimator_config or EstimatorConfig()
     rec = read_trolley_record(trolley, date)
     lines = st.lines()

@@ -49,6 +49,7 @@ is written, the runs already stored under that name are compared with it
 from __future__ import annotations
 
 import contextlib
+import datetime
 import fcntl
 import hashlib
 import json
@@ -94,6 +95,19 @@ def safe_name(text) -> str:
 RUN_IDENTITY = ("run_id", "date", "source", "train", "bogie")
 #: the date of a run whose header could not be read (failures only)
 UNKNOWN_DATE = "unknown"
+
+
+def _calendar_date(text: str) -> bool:
+    """``YYYY-MM-DD`` naming a day of the calendar, or :data:`UNKNOWN_DATE`."""
+    if not _DATE.match(text):
+        return False
+    if text == UNKNOWN_DATE:
+        return True
+    try:
+        datetime.date.fromisoformat(text)
+    except ValueError:
+        return False
+    return True
 
 
 class RunIdCollision(StoreError):
@@ -301,8 +315,9 @@ class MonitoringStore:
             raise StoreError(f"rows for table {table!r} lack partition column(s) {missing}")
         out = {}
         for (section, date), g in frame.groupby(["section", "date"], sort=True):
-            if not _DATE.match(str(date)):
-                raise StoreError(f"table {table!r}: date must be YYYY-MM-DD (or 'unknown' for a failure), got {date!r}")
+            if not _calendar_date(str(date)):
+                raise StoreError(f"table {table!r}: date must be a YYYY-MM-DD calendar date (or 'unknown' for a "
+                                 f"failure), got {date!r}")
             out[self._partition(table, line, str(section), str(date))] = g.drop(
                 columns=[c for c in PARTITIONS if c in g.columns])
         return out
@@ -448,6 +463,61 @@ class MonitoringStore:
         t = pq.read_table(path)
         meta = json.loads((t.schema.metadata or {}).get(b"reference", b"{}"))
         return t.to_pandas(), meta
+
+    # ------------------------------------------------------------------ checking
+    def verify(self) -> int:
+        """Refuse a store holding files it did not write, before any work reads or adds to it.
+
+        Every table file must sit in a ``line=/section=/date=`` partition whose date is a calendar date (or
+        ``unknown``), be named ``<key>__<model>.parquet`` (a day table's key is ``day-<date>``), be a readable
+        Parquet file with a ``model_hash`` column, and hold rows of the model version its name says (from the
+        file's column statistics, without reading its data). A copy, a hand-edited or half-written file, or a
+        foreign table would otherwise be read as the store's own rows: averaged into the days, or taken as a
+        second model version.
+
+        Returns
+        -------
+        int
+            The number of files checked.
+
+        Raises
+        ------
+        StoreError
+            Naming the first file at fault and why.
+        """
+        n = 0
+        for table in TABLES:
+            for f in self.files(table):
+                n += 1
+                date = f.parent.name.split("=", 1)[1]
+                if not _calendar_date(date):
+                    raise StoreError(f"{f}: partition date {date!r} is not a calendar date; this file was not "
+                                     "written by the store (move it out)")
+                m = re.fullmatch(r"(.+)__(.+)\.parquet", f.name)
+                if m is None or (table in DAY_TABLES and m.group(1) != f"day-{date}"):
+                    raise StoreError(f"{f}: not a name the store writes ({'day-<date>' if table in DAY_TABLES else '<run>'}"
+                                     "__<model>.parquet in its date's partition): a copy or a foreign file; move it "
+                                     "out of the store")
+                try:
+                    meta = pq.ParquetFile(f).metadata
+                except Exception as exc:  # noqa: BLE001 - pyarrow raises several kinds on a damaged file
+                    if not f.exists():  # replaced or removed by a concurrent writer since the listing
+                        continue
+                    raise StoreError(f"{f}: not a readable Parquet file ({type(exc).__name__}: {exc}); remove it and "
+                                     "re-ingest its run") from None
+                names = meta.schema.names
+                if "model_hash" not in names:
+                    raise StoreError(f"{f}: no model_hash column: not a {table!r} table the store wrote")
+                k = names.index("model_hash")
+                for g in range(meta.num_row_groups):
+                    st = meta.row_group(g).column(k).statistics
+                    if st is None or not st.has_min_max:
+                        continue
+                    held = {safe_name(str(st.min)), safe_name(str(st.max))}
+                    if held != {m.group(2)}:
+                        raise StoreError(f"{f}: its rows are of model version(s) {sorted(held)}, its name says "
+                                         f"{m.group(2)!r}: a copy or an edited file; move it out of the store")
+        return n
 
     # ------------------------------------------------------------------ reading
     def files(self, table: str) -> list[Path]:

@@ -93,6 +93,18 @@ __all__ = ["collect_runs", "IngestSpec", "DayReference", "RunResult", "IngestRes
 log = logging.getLogger("estimator")
 
 _DATE = re.compile(r"^\d{4}-\d{2}-\d{2}$")
+
+
+def _is_date(text: str) -> bool:
+    """A ``YYYY-MM-DD`` calendar date (2024-02-30 has the form and is none: stored, it would break every later
+    reading of the store's days)."""
+    if not _DATE.match(text):
+        return False
+    try:
+        _dt.date.fromisoformat(text)
+    except ValueError:
+        return False
+    return True
 MAX_RUNS_PER_BATCH = 100_000
 #: times a day's reference is replaced when most of the day's runs cannot be aligned to it
 MAX_REFERENCE_RETRIES = 2
@@ -252,7 +264,7 @@ def _failure(path, header: Mapping, info: RunInfo, error: str, stage: str, line:
              error_type: str = "") -> RunResult:
     run_id = str(header.get("run_id") or Path(path).stem)
     date = str(header.get("date", ""))
-    date = date if _DATE.match(date) else "unknown"
+    date = date if _is_date(date) else "unknown"
     line = line or info.line or str(header.get("line") or "line")
     row = pd.DataFrame([{"run_id": run_id, "source": str(path), "stage": stage, "error": error, "section": "none",
                          "date": date, **_identity(info)}])
@@ -270,7 +282,7 @@ def _run_identity(path, header, run_id: str | None = None, date: str | None = No
     h = header if isinstance(header, Mapping) else {}
     d = str(h.get("date", "")) if date is None else date
     return {"run_id": run_id if run_id is not None else str(h.get("run_id") or Path(path).stem),
-            "date": d if _DATE.match(d) else UNKNOWN_DATE, "source": str(path),
+            "date": d if _is_date(d) else UNKNOWN_DATE, "source": str(path),
             "train": str(h.get("train", "")), "bogie": str(h.get("bogie", ""))}
 
 
@@ -354,10 +366,16 @@ def process_run(path, spec: IngestSpec, reference: DayReference | None = None, *
         return _failure(path, header, ctx.info, str(exc), "estimate", error_type=type(exc).__name__)
     timings = {"estimate": time.perf_counter() - t_start}
     date = str(est.header.get("date", ""))
-    if not _DATE.match(date):
-        return _failure(path, header, ctx.info, f"{path}: the run header's date must be YYYY-MM-DD, got {date!r}",
-                        "header")
+    if not _is_date(date):
+        return _failure(path, header, ctx.info, f"{path}: the run header's date must be a YYYY-MM-DD calendar date, "
+                        f"got {date!r}", "header")
+    if _dt.date.fromisoformat(date) > _dt.date.today() + _dt.timedelta(days=1):
+        log.warning("%s: the run header's date %s is in the future: a logger clock not set? (stored as that survey "
+                    "day)", path, date)
     line_id = ctx.info.line or str(est.header.get("line") or "line")
+    if ctx.info.line and est.header.get("line") and str(est.header["line"]) != ctx.info.line:
+        log.warning("%s: the run header says line %r, the line description %r: stored under %r", path,
+                    str(est.header["line"]), ctx.info.line, ctx.info.line)
     info = replace(ctx.info, line=line_id)
     feats = {w: feature_profile(p.chainage_m, p.rail, p.rails, cfg.align_band_mm, f"{est.run_id} ws{w}")
              for (w, k), p in est.profiles.items() if k == cfg.model}
@@ -529,6 +547,7 @@ def ingest(runs: Sequence, spec: IngestSpec, store, *, executor=None,
 
     t_start = time.perf_counter()
     st = store if isinstance(store, MonitoringStore) else MonitoringStore(store)
+    st.verify()  # a file the store did not write is refused before any work reads or adds to it
     paths = [str(Path(p)) for p in runs]
     if not paths:
         raise MonitoringError("no run file to ingest")
@@ -591,8 +610,9 @@ def ingest(runs: Sequence, spec: IngestSpec, store, *, executor=None,
         d = str(h.get("date", "")) if isinstance(h, dict) else ""
         if not isinstance(h, dict):
             r = _failure(p, {}, ctx.info, h, "header", batch_line)
-        elif not _DATE.match(d):
-            r = _failure(p, h, ctx.info, f"{p}: the run header's date must be YYYY-MM-DD, got {d!r}", "header",
+        elif not _is_date(d):
+            r = _failure(p, h, ctx.info, f"{p}: the run header's date must be a YYYY-MM-DD calendar date, got {d!r}",
+                         "header",
                          batch_line)
         elif p in refused:  # never processed (nor a candidate for its day's reference)
             r = RunResult(p, str(h.get("run_id")), d, ctx.info.line or str(h.get("line") or "line"), True)
@@ -717,7 +737,7 @@ def _run_id_collisions(paths: Sequence[str], headers: Mapping, store: Monitoring
     idents, groups = {}, {}
     for p in paths:
         h = headers.get(p)
-        dated = isinstance(h, Mapping) and _DATE.match(str(h.get("date", "")))
+        dated = isinstance(h, Mapping) and _is_date(str(h.get("date", "")))
         # the line the run's rows will be written to (process_run for a dated header, else the batch's: _failure)
         line = line_id or (str(h.get("line") or "line") if dated else batch_line)
         idents[p] = _run_identity(p, h)
@@ -950,6 +970,7 @@ def monitor(store, *, line: str | None = None, section_range: tuple[float, float
     from estimator.io import read_line
 
     st = store if isinstance(store, MonitoringStore) else MonitoringStore(store)
+    st.verify()  # a file the store did not write is refused before any work reads or adds to it
     lines = st.lines()
     if not lines:
         what = "is empty" if Path(st.root).is_dir() else "does not exist"
@@ -964,7 +985,7 @@ def monitor(store, *, line: str | None = None, section_range: tuple[float, float
     ln = read_line(line_file) if line_file else None
     est_cfg = estimator_config or EstimatorConfig()
     sections = Sections.of(ln, est_cfg.section_length_m)
-    if as_of is not None and not _DATE.match(str(as_of)):
+    if as_of is not None and not _is_date(str(as_of)):
         raise MonitoringError(f"as_of must be a date YYYY-MM-DD, got {as_of!r}")
     runs = _until(st.read("runs", line=line, model_hash=mh), as_of)
     win = _in_range(st.read("windows", line=line, model_hash=mh), "window_m", section_range, cfg.window_m)
@@ -1014,6 +1035,7 @@ def reprocess(store, spec: IngestSpec, *, line: str | None = None, from_model: s
     store is processed again, and the days are re-averaged under the new model's version.
     """
     st = store if isinstance(store, MonitoringStore) else MonitoringStore(store)
+    st.verify()  # a file the store did not write is refused before any work reads or adds to it
     runs = st.read("runs", line=line)
     if runs.empty:
         raise StoreError(f"store {st.root} holds no run to reprocess")
