@@ -405,3 +405,22 @@ def test_a_trolley_record_named_with_no_calendar_date_is_refused_and_one_rail_is
         rec = read_trolley_record(one)
     assert rec.rails == ("R",) and rec.date == "2024-03-04"
     assert "holds rail R only: the comparison, and a calibration from it, covers that rail alone" in caplog.text
+
+
+def test_a_trolley_band_its_sampling_cannot_resolve_is_left_out_and_said(caplog):
+    """A trolley sampled every 100 mm resolves nothing under 200 mm (Nyquist): 10-30, 30-100 and 100-300 mm would be
+    aliased noise, tens of dB off the train. They are left out with a warning; 300-1000 mm is compared, and its
+    peak-to-peak of a 500 mm sine of 20 µm amplitude is 40 µm within the sampling's cos(π/5) bound."""
+    import logging
+
+    from estimator import EstimatorConfig
+    from estimator.monitoring.reference import TrolleyRecord, trolley_windows
+
+    x = np.arange(0.0, 60.0, 0.1)
+    rec = TrolleyRecord("coarse.csv", "2024-03-04", 0.0, 0.1, ("L",), (20e-6 * np.sin(2 * np.pi * x / 0.5))[None, :])
+    with caplog.at_level(logging.WARNING, logger="estimator"):
+        tw = trolley_windows(rec, None, EstimatorConfig(), 1.0)
+    assert set(tw["band_mm"]) == {"300-1000"}
+    assert "sampled every 100 mm, which does not resolve the band(s) 10-30, 30-100, 100-300 mm" in caplog.text
+    mid = tw[tw["window_m"].between(10, 50)]["pk_pk_um"]
+    assert 40.0 * np.cos(np.pi / 5) - 0.5 <= mid.median() <= 40.5

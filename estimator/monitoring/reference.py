@@ -112,6 +112,16 @@ def read_trolley_record(path, date: str | None = None) -> TrolleyRecord:
 def trolley_windows(rec: TrolleyRecord, shift, est_cfg: EstimatorConfig, window_m: float) -> pd.DataFrame:
     """EN 13231-3 band peak-to-peak of the trolley per chainage window on the aligned chainage."""
     bands = est_cfg.bands_mm
+    # a band whose shortest wavelength the trolley's sampling does not resolve (Nyquist: two samples) would be
+    # compared as aliased noise, tens of dB off; it is left out and said
+    coarse = [b for b in bands if 1e-3 * b[0] < 2 * rec.dx]
+    if coarse:
+        log.warning("%s: sampled every %g mm, which does not resolve the band(s) %s mm: left out of the comparison",
+                    rec.source, 1e3 * rec.dx, ", ".join(f"{lo:g}-{hi:g}" for lo, hi in coarse))
+    bands = tuple(b for b in bands if b not in coarse)
+    if not bands:
+        raise TrolleyReferenceError(f"{rec.source}: sampled every {1e3 * rec.dx:g} mm, it resolves none of the "
+                                    "EN 13231-3 bands")
     idx = band_indexes(rec.values, rec.dx, bands, [est_cfg.window_m(b) for b in bands])
     xa = rec.x + (shift.shift(rec.x) if shift is not None else 0.0)
     return bin_windows(xa, idx.pk_pk, rec.dx, bands, rec.rails, window_m).drop(columns=["speed_m_s", "lr_correlation"])
