@@ -211,6 +211,9 @@ def compare_reference(store, trolley, *, line: str | None = None, model_hash: st
     tdate = _nearest(days["date"].unique(), rec.date)
     if rec.date and tdate != rec.date:
         log.warning("%s: no train survey on %s; comparing with the nearest day %s", rec.source, rec.date, tdate)
+    elif not rec.date:
+        log.warning("%s: no survey date in the file's name (<YYYY-MM-DD>.csv); comparing with the train's last survey "
+                    "day %s", rec.source, tdate)
     stored = st.read_reference(line, tdate, mh)
     if stored is None:
         raise TrolleyReferenceError(f"store {st.root}: no alignment reference for {line!r} on {tdate}")
