@@ -372,11 +372,12 @@ def test_a_run_folder_names_the_tables_it_does_not_take_as_runs(tmp_path, caplog
 
 def test_a_date_that_is_no_calendar_day_is_refused_at_writing(tmp_path):
     """2024-02-30 has the form YYYY-MM-DD: stored as a survey day it would break every later reading of the days
-    (the ingest's header check, estimator.monitoring.workflow._is_date, and the store's own partition check)."""
-    from estimator.monitoring.workflow import _is_date
+    (estimator.monitoring.store.calendar_date: the ingest's header check and the store's own partition check)."""
+    from estimator.monitoring.store import calendar_date
 
-    assert _is_date("2024-02-29") and not _is_date("2024-02-30") and not _is_date("2023-02-29")
-    assert not _is_date("yesterday") and not _is_date("2024-2-3")
+    assert calendar_date("2024-02-29") and not calendar_date("2024-02-30") and not calendar_date("2023-02-29")
+    assert not calendar_date("yesterday") and not calendar_date("2024-2-3") and not calendar_date("unknown")
+    assert calendar_date("unknown", unknown_ok=True)
     st = MonitoringStore(tmp_path / "store")
     with pytest.raises(StoreError, match=r"date must be a YYYY-MM-DD calendar date .* got '2024-02-30'"):
         st.write("line1", "r1", "m1", run_tables("r1", "2024-02-30"))

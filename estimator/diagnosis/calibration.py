@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import shutil
 from dataclasses import replace
 from pathlib import Path
@@ -96,8 +97,6 @@ MAX_SENSOR_OFFSET_M = 0.5
 
 def _check_state(state: FieldState, p: Path) -> None:
     """Refuse a state no diagnosis writes, naming the file and the entry (a hand-edited or damaged file)."""
-    import math
-
     from estimator.diagnosis.state import TRACKFORM_FACTORS
 
     if state.supports not in ("continuous", "discrete"):

@@ -97,12 +97,13 @@ RUN_IDENTITY = ("run_id", "date", "source", "train", "bogie")
 UNKNOWN_DATE = "unknown"
 
 
-def _calendar_date(text: str) -> bool:
-    """``YYYY-MM-DD`` naming a day of the calendar, or :data:`UNKNOWN_DATE`."""
+def calendar_date(text: str, unknown_ok: bool = False) -> bool:
+    """``YYYY-MM-DD`` naming a day of the calendar (2024-02-30 has the form and is none: stored, it would break
+    every later reading of the days), or with ``unknown_ok`` :data:`UNKNOWN_DATE` (a failure's partition)."""
     if not _DATE.match(text):
         return False
     if text == UNKNOWN_DATE:
-        return True
+        return unknown_ok
     try:
         datetime.date.fromisoformat(text)
     except ValueError:
@@ -315,7 +316,7 @@ class MonitoringStore:
             raise StoreError(f"rows for table {table!r} lack partition column(s) {missing}")
         out = {}
         for (section, date), g in frame.groupby(["section", "date"], sort=True):
-            if not _calendar_date(str(date)):
+            if not calendar_date(str(date), unknown_ok=True):
                 raise StoreError(f"table {table!r}: date must be a YYYY-MM-DD calendar date (or 'unknown' for a "
                                  f"failure), got {date!r}")
             out[self._partition(table, line, str(section), str(date))] = g.drop(
@@ -490,7 +491,7 @@ class MonitoringStore:
             for f in self.files(table):
                 n += 1
                 date = f.parent.name.split("=", 1)[1]
-                if not _calendar_date(date):
+                if not calendar_date(date, unknown_ok=True):
                     raise StoreError(f"{f}: partition date {date!r} is not a calendar date; this file was not "
                                      "written by the store (move it out)")
                 m = re.fullmatch(r"(.+)__(.+)\.parquet", f.name)

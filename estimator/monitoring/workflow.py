@@ -56,7 +56,6 @@ from __future__ import annotations
 import datetime as _dt
 import logging
 import math
-import re
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -80,8 +79,8 @@ from estimator.monitoring.headers import read_header
 from estimator.monitoring.outliers import outlying_estimates, without_outliers
 from estimator.monitoring.records import RunInfo, Sections, config_hash, file_hash, spectra_rows, toolkit_version, \
     window_table
-from estimator.monitoring.store import (RUN_TABLES, UNKNOWN_DATE, MonitoringStore, RunIdCollision, collision_message,
-                                        safe_name, same_run)
+from estimator.monitoring.store import (RUN_TABLES, UNKNOWN_DATE, MonitoringStore, RunIdCollision, calendar_date,
+                                        collision_message, safe_name, same_run)
 from estimator.monitoring.trends import forecast, growth
 from estimator.monitoring.variants import (contact_variants, perturbed_variants, placement_variants, track_variants,
                                            variant_windows)
@@ -92,19 +91,6 @@ __all__ = ["collect_runs", "IngestSpec", "DayReference", "RunResult", "IngestRes
 
 log = logging.getLogger("estimator")
 
-_DATE = re.compile(r"^\d{4}-\d{2}-\d{2}$")
-
-
-def _is_date(text: str) -> bool:
-    """A ``YYYY-MM-DD`` calendar date (2024-02-30 has the form and is none: stored, it would break every later
-    reading of the store's days)."""
-    if not _DATE.match(text):
-        return False
-    try:
-        _dt.date.fromisoformat(text)
-    except ValueError:
-        return False
-    return True
 MAX_RUNS_PER_BATCH = 100_000
 #: times a day's reference is replaced when most of the day's runs cannot be aligned to it
 MAX_REFERENCE_RETRIES = 2
@@ -264,7 +250,7 @@ def _failure(path, header: Mapping, info: RunInfo, error: str, stage: str, line:
              error_type: str = "") -> RunResult:
     run_id = str(header.get("run_id") or Path(path).stem)
     date = str(header.get("date", ""))
-    date = date if _is_date(date) else "unknown"
+    date = date if calendar_date(date) else "unknown"
     line = line or info.line or str(header.get("line") or "line")
     row = pd.DataFrame([{"run_id": run_id, "source": str(path), "stage": stage, "error": error, "section": "none",
                          "date": date, **_identity(info)}])
@@ -282,7 +268,7 @@ def _run_identity(path, header, run_id: str | None = None, date: str | None = No
     h = header if isinstance(header, Mapping) else {}
     d = str(h.get("date", "")) if date is None else date
     return {"run_id": run_id if run_id is not None else str(h.get("run_id") or Path(path).stem),
-            "date": d if _is_date(d) else UNKNOWN_DATE, "source": str(path),
+            "date": d if calendar_date(d) else UNKNOWN_DATE, "source": str(path),
             "train": str(h.get("train", "")), "bogie": str(h.get("bogie", ""))}
 
 
@@ -366,7 +352,7 @@ def process_run(path, spec: IngestSpec, reference: DayReference | None = None, *
         return _failure(path, header, ctx.info, str(exc), "estimate", error_type=type(exc).__name__)
     timings = {"estimate": time.perf_counter() - t_start}
     date = str(est.header.get("date", ""))
-    if not _is_date(date):
+    if not calendar_date(date):
         return _failure(path, header, ctx.info, f"{path}: the run header's date must be a YYYY-MM-DD calendar date, "
                         f"got {date!r}", "header")
     if _dt.date.fromisoformat(date) > _dt.date.today() + _dt.timedelta(days=1):
@@ -610,7 +596,7 @@ def ingest(runs: Sequence, spec: IngestSpec, store, *, executor=None,
         d = str(h.get("date", "")) if isinstance(h, dict) else ""
         if not isinstance(h, dict):
             r = _failure(p, {}, ctx.info, h, "header", batch_line)
-        elif not _is_date(d):
+        elif not calendar_date(d):
             r = _failure(p, h, ctx.info, f"{p}: the run header's date must be a YYYY-MM-DD calendar date, got {d!r}",
                          "header",
                          batch_line)
@@ -737,7 +723,7 @@ def _run_id_collisions(paths: Sequence[str], headers: Mapping, store: Monitoring
     idents, groups = {}, {}
     for p in paths:
         h = headers.get(p)
-        dated = isinstance(h, Mapping) and _is_date(str(h.get("date", "")))
+        dated = isinstance(h, Mapping) and calendar_date(str(h.get("date", "")))
         # the line the run's rows will be written to (process_run for a dated header, else the batch's: _failure)
         line = line_id or (str(h.get("line") or "line") if dated else batch_line)
         idents[p] = _run_identity(p, h)
@@ -985,7 +971,7 @@ def monitor(store, *, line: str | None = None, section_range: tuple[float, float
     ln = read_line(line_file) if line_file else None
     est_cfg = estimator_config or EstimatorConfig()
     sections = Sections.of(ln, est_cfg.section_length_m)
-    if as_of is not None and not _is_date(str(as_of)):
+    if as_of is not None and not calendar_date(str(as_of)):
         raise MonitoringError(f"as_of must be a date YYYY-MM-DD, got {as_of!r}")
     runs = _until(st.read("runs", line=line, model_hash=mh), as_of)
     win = _in_range(st.read("windows", line=line, model_hash=mh), "window_m", section_range, cfg.window_m)
