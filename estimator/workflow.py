@@ -607,15 +607,12 @@ def _nothing_estimated(run: Run, skipped: list[str]) -> NoValidDataError:
     findings that masked most of the run (what to look at first; the log lists each finding)."""
     why = _grouped(skipped, everyone=True) or "every sample masked"
     t = run.t
-    cover = []
-    for kind in sorted({e.kind for e in run.mask.events} if run.mask is not None else ()):
-        hit = np.zeros(t.size, bool)
-        for e in run.mask.events:
-            if e.kind == kind and e.action == "masked" and np.isfinite(e.t_start):
-                hit |= (t >= e.t_start) & (t <= e.t_end)
-        if hit.mean() >= 0.01:
-            cover.append((float(hit.mean()), kind))
-    worst = ", ".join(f"{kind} {100 * share:.0f} %" for share, kind in sorted(cover, reverse=True)[:4])
+    hits: dict[str, np.ndarray] = {}
+    for e in run.mask.events if run.mask is not None else ():
+        if e.action == "masked" and np.isfinite(e.t_start):
+            hits.setdefault(e.kind, np.zeros(t.size, bool))[(t >= e.t_start) & (t <= e.t_end)] = True
+    cover = sorted(((float(h.mean()), kind) for kind, h in hits.items() if h.mean() >= 0.01), reverse=True)
+    worst = ", ".join(f"{kind} {100 * share:.0f} %" for share, kind in cover[:4])
     return NoValidDataError(f"{run.source}: nothing could be estimated ({why}; masked share "
                             f"{100 * run.masked_share['run']:.0f} %" + (f", mostly by {worst} of the run" if worst
                                                                          else "") + "; each finding is logged)")
@@ -789,6 +786,7 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
                               "(a model that needs them is not estimated; the other channels' models are)")
     for w in run.wheelsets:
         chans = run.wheelset_channels(w)
+        gone = [n for n in chans["name"] if n in dead]
         chans = chans[~chans["name"].isin(dead)].reset_index(drop=True)
         chain_w = chains[w] = track.chainage_at(t_run) + orient.wheelset_offset_sign[w] * wb_guess / 2
         plans = []
@@ -796,7 +794,6 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
             try:
                 rows, _ = model_channels(kind, chans)
             except ChannelError as exc:
-                gone = [n for n in run.wheelset_channels(w)["name"] if n in dead]
                 why = f"{exc}" + (f" ({', '.join(gone)} masked over the whole run)" if gone else "")
                 skipped.append(f"wheelset {w}, {kind}: {why}")
                 log.warning("%s: wheelset %d, model %s not estimated: %s", run.source, w, kind, why)
