@@ -20,7 +20,10 @@ run into a :class:`~estimator.results.FieldEstimate`:
    same roughness ``a`` apart; rail by rail, over wavelengths longer than a
    few contact patches); with the wheelbase given and fewer than two balises
    in the run, that lag gives the odometer's scale
-   (:func:`estimator.spatial.rescaled`); then, with ``bogie_coupling``, each
+   (:func:`estimator.spatial.rescaled`); the same correlations, every rail of one
+   wheelset against every rail of the other, check the channels against the
+   sensor table (a channel of the wrong sign, swapped sides or wheelsets:
+   :mod:`estimator.lead_trail`; refused naming them); then, with ``bogie_coupling``, each
    wheelset is inverted again with the rail deflection the other wheelset's
    contact forces cause under it (:func:`estimator.inversion.rail_coupling`;
    the forces from the other wheelset's same model, else its richest one,
@@ -59,6 +62,7 @@ from estimator.contact_angles import CurvingModel, contact_angles
 from estimator.contact_filter import contact_gain
 from estimator.corrugation import MIN_PROMINENCE_DB, classify, model_resonances, spectral_peak
 from estimator.errors import ChannelError, ConfigurationError, NoValidDataError, WheelbaseError
+from estimator.lead_trail import MIN_CORRELATION, LeadTrail, arrangement_findings, lead_trail
 from estimator.inversion import (TimeIrregularity, _log_smooth_rms, check_sensor_mounting, check_wheelset_geometry,
                                  condition_by_band, invert, model_channels, rail_coupling, sample_many,
                                  wheelset_transfer)
@@ -86,7 +90,7 @@ log = logging.getLogger("estimator")
 #: range searched for the wheelbase when it is measured from the data [m]
 WHEELBASE_RANGE_M = (1.2, 4.0)
 #: smallest normalised correlation between the two wheelsets' estimates for a measured wheelbase
-WHEELBASE_MIN_CORRELATION = 0.3
+WHEELBASE_MIN_CORRELATION = MIN_CORRELATION
 _PRIMARY = ("vertical_lateral", "vertical", "half")
 #: what a wheelset inverted without the rail coupling costs, measured on the virtual line (nominal, curve 1, its
 #: corrugated rail, leading wheelset, vertical + lateral model, 1 m windows)
@@ -435,93 +439,75 @@ transfer_classes = _class_weights
 #: 0.56, 0.40, 0.49 at 0.5, 1, 2, 2.5 kHz (one 2 kHz run at the 0.3 threshold); from 52 mm 0.67, 0.75, 0.75, 0.76,
 #: the wheelbase within 0.3 mm of the vehicle's (tests/test_field_bogie_coupling.py).
 WHEELBASE_PATCH_LENGTHS = 5.0
+#: Chainage [m] over which the channels are checked when the wheelbase is given (measured, the whole run's
+#: correlations serve both). A correlation over wavelengths of 0.05-1.2 m on 300 m has a standard error of about
+#: 1/sqrt(300 m / 0.05 m) ≈ 0.013, against the check's 0.3; the whole run would cost ~13 % of a 150 s run's estimate.
+ARRANGEMENT_CHECK_SPAN_M = 300.0
 #: preference among a wheelset's estimates of a rail for the lead/trail correlation
 _WHEELBASE_KINDS = ("vertical", "vertical_lateral", "half")
 
 
-def _wheelbase_rails(tis: Mapping, orient: Orientation) -> dict[str, dict[int, tuple[tuple[int, str], int]]]:
-    """Per rail both wheelsets estimate: ``{rail: {w: ((w, kind), row of that rail in its estimate)}}``.
+def _lead_trail(fm: FieldModel, tis: Mapping, track: OdometryTrack, orient: Orientation, lam_min: float,
+                span_m: float | None = None) -> LeadTrail | None:
+    """The two wheelsets' estimates of each rail (:data:`_WHEELBASE_KINDS` first), cross-correlated over the
+    wavelengths from ``max(λ_min, WHEELBASE_PATCH_LENGTHS · 2 a_x)`` (the Hertz patch, thesis eq. 2.5) to the
+    shortest wheelbase searched (:func:`estimator.lead_trail.lead_trail`); None without both wheelsets.
 
-    The two wheelsets of a bogie roll on the same rail on each vehicle side (``orient.rail_of_side``), but an
-    estimate's rows are the vehicle sides it has (``TimeIrregularity.sides``): a half model of a wheelset
-    without its left vertical channel holds rail R in row 0. Pairing by rail, not by row, compares the same rail.
+    An estimate's rows are the vehicle sides it has (``TimeIrregularity.sides``): a half model of a wheelset without
+    its left vertical channel holds rail R in row 0. Pairing by rail (``orient.rail_of_side``), not by row,
+    compares the same rail. ``span_m``: only the stretch of that length where the most of the estimates are
+    valid (the channel check with a given wheelbase, :data:`ARRANGEMENT_CHECK_SPAN_M`), not the whole run.
     """
-    out: dict[str, dict[int, tuple[tuple[int, str], int]]] = {}
+    chosen: dict[tuple[int, str], tuple[tuple[int, str], int]] = {}
     for w in (1, 2):
         for side in "LR":
             key = next((k for k in _WHEELBASE_KINDS if (w, k) in tis and side in tis[(w, k)].sides), None)
             if key is not None:
-                out.setdefault(orient.rail_of_side[side], {})[w] = ((w, key), tis[(w, key)].sides.index(side))
-    return {rail: by_w for rail, by_w in sorted(out.items()) if len(by_w) == 2}
-
-
-def _estimate_wheelbase(fm: FieldModel, tis: Mapping, track: OdometryTrack, orient: Orientation, lam_min: float
-                        ) -> tuple[float | None, float, tuple[str, ...]]:
-    """Wheelbase [m] from the lag between the two wheelsets' estimates of the same rails, the normalised
-    correlation at that lag, and the rails correlated (empty: no rail estimated on both wheelsets).
-
-    Each rail both wheelsets estimate (:func:`_wheelbase_rails`) enters with its whitened spectrum over the
-    wavelengths from ``max(λ_min, WHEELBASE_PATCH_LENGTHS · 2 a_x)`` (the Hertz patch, thesis eq. 2.5) to the
-    shortest wheelbase searched.
-    """
-    pairs = _wheelbase_rails(tis, orient)
-    if not pairs:
-        return None, 0.0, ()
+                chosen[(w, orient.rail_of_side[side])] = ((w, key), tis[(w, key)].sides.index(side))
+    if not any(w == 1 for w, _ in chosen) or not any(w == 2 for w, _ in chosen):
+        return None
     lam_lo = max(lam_min, WHEELBASE_PATCH_LENGTHS * 2 * fm.semi_axis_m)
     dx = max(lam_min / 2, 0.005)
-    t_of = _chainage_to_time(track, 0.0)
-    lo = np.nanmin(track.chainage)
-    hi = np.nanmax(track.chainage)
+    lo, hi = float(np.nanmin(track.chainage)), float(np.nanmax(track.chainage))
+    t_of = _chainage_to_time(track, 0.0)  # the bogie's centre: wheelset 1 sees r(x + s a/2), wheelset 2 r(x - s a/2)
+    keys = sorted({key for key, _ in chosen.values()})
+    if span_m is not None and hi - lo > span_m:
+        step = 0.5
+        xc = np.arange(lo, hi, step)
+        coarse = dict(zip(keys, sample_many([tis[k] for k in keys], t_of(xc))))
+        ok = np.all([np.isfinite(coarse[key][row]) for key, row in chosen.values()], axis=0)
+        m = int(span_m / step)
+        filled = np.convolve(ok.astype(float), np.ones(m), mode="valid")
+        lo = float(xc[int(np.argmax(filled))])
+        hi = lo + span_m
     x = np.arange(lo, hi, dx)
     ts = t_of(x)
-    sampled = {key: tis[key].sample(ts) for by_w in pairs.values() for key, _ in by_w.values()}
-    # ws1 leads ws2 along the front direction: r1(x) = r2(x + f a), f the sign of ws1's offset
-    f = orient.wheelset_offset_sign[1]
-    num = np.zeros(0)
-    norm_total = 0.0
-    n = sfft.next_fast_len(2 * x.size)
-    k = sfft.rfftfreq(n, dx)
-    for by_w in pairs.values():
-        (key1, row1), (key2, row2) = by_w[1], by_w[2]
-        a, b = sampled[key1][row1], sampled[key2][row2]
-        wa, wb = np.isfinite(a), np.isfinite(b)
-        a0, b0 = np.where(wa, a - np.nanmean(a), 0.0), np.where(wb, b - np.nanmean(b), 0.0)
-        # whitened (each spectrum over its one-third-octave RMS): a narrow-band corrugation would otherwise give
-        # correlation peaks every wavelength and the lag could land whole wavelengths off
-        A, B = sfft.rfft(a0, n), sfft.rfft(b0, n)
-        for Z in (A, B):  # floor at -60 dB of the peak: what the inversion band left empty stays empty
-            env = _log_smooth_rms(k, np.abs(Z))
-            Z /= np.maximum(env, 1e-3 * env.max() + 1e-300)
-        # waves longer than the shortest wheelbase searched give no sharp peak; waves shorter than a few contact
-        # patches differ between the wheelsets (WHEELBASE_PATCH_LENGTHS)
-        outside = (k < 1.0 / WHEELBASE_RANGE_M[0]) | (k > 1.0 / lam_lo)
-        A[outside] = 0.0
-        B[outside] = 0.0
-        a0, b0 = sfft.irfft(A, n)[:x.size] * wa, sfft.irfft(B, n)[:x.size] * wb
-        c = sfft.irfft(sfft.rfft(b0, n) * np.conj(sfft.rfft(a0, n)), n)  # c[l] = Σ a(x) b(x + l)
-        num = c if num.size == 0 else num + c
-        norm_total += math.sqrt(float(np.sum(a0 ** 2) * np.sum(b0 ** 2)))
-    lags = np.arange(num.size)
-    lags = np.where(lags > num.size // 2, lags - num.size, lags) * dx
-    sel = (f * lags >= WHEELBASE_RANGE_M[0]) & (f * lags <= WHEELBASE_RANGE_M[1])
-    if not sel.any():
-        return None, 0.0, tuple(pairs)
-    idx = np.flatnonzero(sel)
-    k = idx[int(np.argmax(num[idx]))]
-    peak = num[k]
-    # parabolic refinement
-    if 0 < k < num.size - 1:
-        y0, y1, y2 = num[k - 1], num[k], num[k + 1]
-        den = y0 - 2 * y1 + y2
-        off = 0.5 * (y0 - y2) / den if den != 0 else 0.0
-    else:
-        off = 0.0
-    a_est = abs(lags[k] + off * dx)
-    return a_est, float(peak / norm_total) if norm_total > 0 else 0.0, tuple(pairs)
+    sampled = dict(zip(keys, sample_many([tis[k] for k in keys], ts)))
+    profiles = {wr: sampled[key][row] for wr, (key, row) in sorted(chosen.items())}
+    return lead_trail(profiles, dx, lam_lo, orient.wheelset_offset_sign[1], WHEELBASE_RANGE_M)
 
 
-def _odometer_scale_from_wheelbase(fm: FieldModel, tis: Mapping, track: OdometryTrack, orient: Orientation,
-                                   lam_min: float, wheelbase_m: float) -> tuple[OdometryTrack, str]:
+def _check_arrangement(run: Run, lt: LeadTrail | None, orient: Orientation) -> None:
+    """Refuse a run whose two wheelsets' estimates contradict the sensor table (a channel of the wrong sign, sides
+    or wheelsets swapped: :func:`estimator.lead_trail.arrangement_findings`): every estimate would be wrong, or
+    on the wrong rail, and the lead/trail lag meaningless."""
+    if lt is None:
+        return
+    names = {}
+    for w in (1, 2):
+        chans = run.wheelset_channels(w)
+        for side in "LR":
+            z = chans[(chans["direction"] == "z") & (chans["side"] == side)]["name"]
+            if len(z):
+                names[(w, orient.rail_of_side[side])] = str(z.iloc[0])
+    found = arrangement_findings(lt, names, direction=orient.direction, orientation=orient.orientation)
+    if found:
+        raise ChannelError(f"{run.source}: the two wheelsets' estimates contradict the sensor table: "
+                           + "; ".join(found))
+
+
+def _odometer_scale_from_wheelbase(fm: FieldModel, lt: LeadTrail | None, track: OdometryTrack,
+                                   wheelbase_m: float) -> tuple[OdometryTrack, str]:
     """The track with the odometer's scale from the lead/trail lag over a known wheelbase, or the track as it is
     and why not.
 
@@ -531,9 +517,10 @@ def _odometer_scale_from_wheelbase(fm: FieldModel, tis: Mapping, track: Odometry
     1/1.0041: 0.04 % over the run, where the uncorrected 0.41 % drifted 1 m in 240 m). A scale beyond
     ``max_scale_error`` is a wrong lag or a wrong drawing value, not wear: not applied.
     """
-    lag, contrast, rails = _estimate_wheelbase(fm, tis, track, orient, lam_min)
+    rails = lt.rails if lt is not None else ()
     if not rails:
         return track, "no rail is estimated on both wheelsets, so the lead/trail lag cannot measure it"
+    lag, contrast = lt.wheelbase()
     if lag is None or contrast < WHEELBASE_MIN_CORRELATION:
         return track, (f"the lead/trail lag cannot measure it (correlation {contrast:.2f} < "
                        f"{WHEELBASE_MIN_CORRELATION})")
@@ -841,10 +828,14 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
     # ---- wheelbase
     t0 = time.perf_counter()
     scale_why = "give the wheelbase (wheelbase_m / --wheelbase) for the lead/trail lag to measure it"
+    checked = False  # the channels against the sensor table, from the lead/trail correlation (_check_arrangement)
     if cfg.wheelbase_m is not None:
         wb, wb_src = cfg.wheelbase_m, "given"
         if scale_from_wb:
-            track, scale_why = _odometer_scale_from_wheelbase(fm, tis, track, orient, lam_min, wb)
+            lt = _lead_trail(fm, tis, track, orient, lam_min)
+            _check_arrangement(run, lt, orient)
+            checked = True
+            track, scale_why = _odometer_scale_from_wheelbase(fm, lt, track, wb)
             if track.scale_source != "odometer":
                 # the QC table and every chainage below carry the corrected scale
                 fixed = tuple(e for e in track.events if e.kind == "odometry_scale")
@@ -853,7 +844,12 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
                                     f"chainage: {fixed[0].reason}")
                 log.info("%s: %s", run.source, fixed[0].reason)
     else:
-        est, contrast, rails = _estimate_wheelbase(fm, tis, track, orient, lam_min)
+        lt = _lead_trail(fm, tis, track, orient, lam_min)
+        # a channel of the wrong sign or on the wrong side would otherwise surface as an unmeasurable wheelbase
+        _check_arrangement(run, lt, orient)
+        checked = True
+        est, contrast = lt.wheelbase() if lt is not None else (None, 0.0)
+        rails = lt.rails if lt is not None else ()
         if len(run.wheelsets) > 1 and not rails:
             have = "; ".join(f"wheelset {w}: rail(s) " + (", ".join(sorted({orient.rail_of_side[s] for (ww, _), ti
                                                                           in tis.items() if ww == w
@@ -970,6 +966,10 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
                               f"other wheelset rolls on the same rails {wb:.3f} m away and its contact forces, which "
                               f"deflect the rail under this one, are not measured ({UNCOUPLED_EFFECT}); instrument "
                               f"both wheelsets for the coupled estimate")
+    if not checked:  # the wheelbase was given: the channels checked on the final estimates
+        t0 = time.perf_counter()
+        _check_arrangement(run, _lead_trail(fm, tis, track, orient, lam_min, ARRANGEMENT_CHECK_SPAN_M), orient)
+        timings["wheelbase"] += time.perf_counter() - t0
     # ---- space, comb, indexes per wheelset
     t0 = time.perf_counter()
     profiles: dict[tuple[int, str], ProfileEstimate] = {}

@@ -160,14 +160,15 @@ def test_the_lead_trail_correlation_does_not_depend_on_the_sampling_rate():
     what the rail makes it at 1 and 2 kHz alike (here only the rail from 50 mm up is common: correlation ~1) and
     the lag is the wheelbase."""
     from estimator.orientation import orientation
-    from estimator.workflow import _estimate_wheelbase
+    from estimator.workflow import _lead_trail
 
     fm = SimpleNamespace(semi_axis_m=0.0052)  # the Hertz patch of the virtual line's wheels (a_x)
     orient = orientation("forward", "normal")
     out = {}
     for fs in (1000.0, 2000.0):
         tis, track = _two_wheelset_irregularities(fs)
-        out[fs] = _estimate_wheelbase(fm, tis, track, orient, 10.0 / (0.4 * fs))
+        lt = _lead_trail(fm, tis, track, orient, 10.0 / (0.4 * fs))
+        out[fs] = (*lt.wheelbase(), lt.rails)
     for fs, (a, corr, rails) in out.items():
         assert a == pytest.approx(2.1, abs=0.002), out
         assert corr > 0.9 and rails == ("L", "R"), out
