@@ -257,6 +257,7 @@ def _cmd_pair(args: argparse.Namespace) -> int:
     from ema.modes_io import read_modeset
     from ema.pairing import pair_modes
     from ema.plot_pairing import plot_mac, render_pair
+    from ema.polarity import channel_polarity, polarity_findings
 
     from railmodal.output import staged_output
 
@@ -268,8 +269,10 @@ def _cmd_pair(args: argparse.Namespace) -> int:
     fe, where = fem_import.read_with_geometry(args.fem, args.geometry, units=args.fe_units)
     step(where)
     pairing = pair_modes(test, fe, threshold=args.mac_min)
+    polarity = channel_polarity(test, fe, pairing)
     with staged_output(out) as tmp:  # write last: --out gets the results only when everything succeeded
         pairing.to_csv(tmp / "pairing.csv")
+        polarity.to_csv(tmp / "channel_polarity.csv", index=False, float_format="%.6g")
         fig = plot_mac(pairing, test, fe)
         fig.savefig(tmp / "mac.png", dpi=120)
         plt.close(fig)
@@ -280,7 +283,10 @@ def _cmd_pair(args: argparse.Namespace) -> int:
                         title=f"FE mode {fe_label}: {fe.freqs_hz[p.fe_indices[0]]:.2f} Hz, MAC {p.mac:.3f}")
             step(f"rendered {name}")
     print(pairing.table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
-    print(f"written: {out / 'pairing.csv'}, {out / 'mac.png'} and {len(pairing.pairs)} renders")
+    for finding in polarity_findings(polarity):
+        logging.getLogger("ema").warning("%s", finding)
+    print(f"written: {out / 'pairing.csv'}, {out / 'channel_polarity.csv'}, {out / 'mac.png'} and "
+          f"{len(pairing.pairs)} renders")
     return 0
 
 

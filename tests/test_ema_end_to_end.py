@@ -18,6 +18,7 @@ import ema
 import fem_import
 from ema.merge import merge_setups
 from ema.pairing import pair_modes
+from ema.polarity import channel_polarity
 from lab_data.cache import campaign_dir
 from railmodal.cli import main
 from test_ema_identify_support import assert_acceptance, match_to_truth
@@ -49,6 +50,8 @@ def test_identify_merge_and_pair_against_truth(scenario):
 
         # pairing of this setup's identified modes reproduces the truth's pairing
         pairing = pair_modes(result.modes, fe)
+        # every channel reads with the sign its table gives: none is blamed (tests/test_ema_polarity.py)
+        assert not channel_polarity(result.modes, fe, pairing)["suspect"].any()
         got = {p.test_index: {j + 1 for j in p.fe_indices} for p in pairing.pairs}
         truth = [t for t in st["modes"] if t["observable"]]
         for t in truth:
@@ -64,6 +67,7 @@ def test_identify_merge_and_pair_against_truth(scenario):
     merged = merge_setups([per_setup["flexural"], per_setup["torsional"]])
     assert len(merged) <= len(per_setup["flexural"]) + len(per_setup["torsional"])
     pairing = pair_modes(merged, fe)
+    assert not channel_polarity(merged, fe, pairing)["suspect"].any()
     # every truth partner of an observable mode appears in the merged pairing
     wanted = {tuple(sorted(t["fe_partner"])) for s in manifest["setups"].values() for t in s["modes"]
               if t["observable"] and t["fe_partner"]}
@@ -100,6 +104,8 @@ def test_cli_identify_and_pair(tmp_path):
     assert main(["-q", "lab", "pair", "--modes", str(out["flexural"]), "--modes", str(out["torsional"]),
                  "--fem", str(folder / "fe_design.uff"), "--out", str(pair_dir)]) == 0
     table = pd.read_csv(pair_dir / "pairing.csv")
+    polarity = pd.read_csv(pair_dir / "channel_polarity.csv")
+    assert len(polarity) > 29 and not polarity["suspect"].any()  # both setups' channels, none blamed
     assert {"f_test_hz", "f_fe_hz", "df_pct", "zeta", "mac", "description"} <= set(table.columns)
     paired = table.dropna(subset=["f_test_hz", "f_fe_hz"])
     # control: the test frequencies are the FE ones (truth = design) and every paired MAC is high

@@ -79,6 +79,26 @@ def test_a_file_the_store_did_not_write_is_refused_by_name(tmp_path):
     assert st.verify() == 8
 
 
+def test_a_second_check_reads_only_what_changed_since_the_first(tmp_path, monkeypatch):
+    """``reprocess`` checks the store, then its ``ingest`` does: the second reads no footer again, but a file
+    rewritten in between (here by a foreign hand) is read and refused."""
+    import estimator.monitoring.store as store_module
+
+    st = MonitoringStore(tmp_path / "store")
+    st.write("line1", "r1", "m1", run_tables("r1", "2024-03-04"))
+    st.write("line1", "r2", "m1", run_tables("r2", "2024-03-04"))
+    real = store_module.pq.ParquetFile
+    opened = []
+    monkeypatch.setattr(store_module.pq, "ParquetFile", lambda f, *a, **k: opened.append(f) or real(f, *a, **k))
+    assert st.verify() == 8 and len(opened) == 8
+    assert st.verify() == 8 and len(opened) == 8
+    f = tmp_path / "store" / "windows" / "line=line1" / "section=s1" / "date=2024-03-04" / "r1__m1.parquet"
+    pd.DataFrame({"a": [1.0]}).to_parquet(f)
+    with pytest.raises(StoreError, match=re.escape(f"{f}: no model_hash column")):
+        st.verify()
+    assert opened[8:] == [f]
+
+
 def test_two_model_versions_side_by_side(tmp_path):
     st = MonitoringStore(tmp_path / "store")
     st.write("line1", "r1", "m1", run_tables("r1", "2024-03-04", model="m1"))

@@ -243,8 +243,13 @@ def _section_measured(setups_info: Sequence[Mapping], figs: _Figures) -> str:
     return "".join(out)
 
 
-def _section_pairing(pairing_table: pd.DataFrame | None, setups_info, figs: _Figures, model_note: str) -> str:
+def _section_pairing(pairing_table: pd.DataFrame | None, setups_info, figs: _Figures, model_note: str,
+                     polarity: Sequence[str] = ()) -> str:
     out = [f"<h2>{_e(SECTION_TITLES[1])}</h2>"]
+    if polarity:
+        out.append("<div class='box warn'><p><b>Channels that look read with the wrong sign</b> (their FRFs enter "
+                   "the comparison and the diagnosis as measured; every channel's check in channel_polarity.csv)"
+                   "</p>" + "".join(f"<p>{_e(f)}</p>" for f in polarity) + "</div>")
     if pairing_table is None or len(pairing_table) == 0:
         out.append(_para("No pairing table was given."))
     else:
@@ -529,7 +534,8 @@ def write_diagnosis_report(path, *, diagnosis, comparisons: Sequence, figures: M
                            setups_info: Sequence[Mapping] = (), pairing_table: pd.DataFrame | None = None,
                            timings: Mapping[str, float] | None = None, title: str = "Wheelset model against "
                            "measurement: diagnosis", model_note: str = "", inputs: Mapping[str, str] | None = None,
-                           files: Mapping[str, str] | None = None, model_doc: Mapping | None = None) -> Path:
+                           files: Mapping[str, str] | None = None, model_doc: Mapping | None = None,
+                           polarity: Sequence[str] = ()) -> Path:
     """Write the diagnosis report as one self-contained HTML file.
 
     Parameters
@@ -557,6 +563,9 @@ def write_diagnosis_report(path, *, diagnosis, comparisons: Sequence, figures: M
         :attr:`ema.pairing.Pairing.table`.
     timings : dict of str -> float, optional
         Seconds per stage.
+    polarity : sequence of str
+        :func:`ema.polarity.polarity_findings`: channels that look read with the wrong sign (a warning box in
+        the pairing section).
     title, model_note : str
         Page title; a sentence on how the model was built (section 2).
     inputs, files : dict of str -> str, optional
@@ -589,7 +598,7 @@ def write_diagnosis_report(path, *, diagnosis, comparisons: Sequence, figures: M
     head.append(_summary_box(diagnosis, comparisons))
     body = "".join(head + [
         _section_measured(setups_info, figs),
-        _section_pairing(pairing_table, setups_info, figs, model_note),
+        _section_pairing(pairing_table, setups_info, figs, model_note, polarity),
         _section_before(comparisons[0], figs),
         _section_diagnosis(diagnosis, criterion),
         _section_effects(diagnosis, comparisons, figs) + _section_model(model_doc),

@@ -427,6 +427,7 @@ def run_lab_diagnosis(setups, fem: Path, points: Path, out: Path, *, band_hz: tu
     from ema.channels import read_channels
     from ema.merge import merge_setups
     from ema.pairing import pair_modes
+    from ema.polarity import channel_polarity, polarity_findings
     from receptance.diagnosis.compare import compare
     from receptance.diagnosis.diagnose import diagnose
     from receptance.diagnosis.errors import DiagnosisError
@@ -526,6 +527,9 @@ def run_lab_diagnosis(setups, fem: Path, points: Path, out: Path, *, band_hz: tu
     test_modes = merge_setups(sets) if len(sets) > 1 else sets[0]
     say(f"{len(test_modes)} test modes from {len(sets)} setup(s); pairing with {len(fe)} FE modes")
     pairing = pair_modes(test_modes, fe, threshold=mac_min)
+    polarity = channel_polarity(test_modes, fe, pairing)
+    for finding in polarity_findings(polarity):
+        log.warning("%s", finding)
     model = hybrid_model(fe, pairing, points=point_table, keep_fe="all", max_hz=mode_margin * band[1])
     n_paired = len(pairing.pairs)
     model_note = (f"Hybrid model (thesis §2.3): the FE shapes of {fe.source or fem.name} "
@@ -554,12 +558,12 @@ def run_lab_diagnosis(setups, fem: Path, points: Path, out: Path, *, band_hz: tu
 
     # ---- files
     paths = _write_results(out, setups, names, results, frfs, pairing, test_modes, fe, diagnosis, comparisons, info,
-                           model_note, band, desc, fem, points, timings, t_all, say, frame)
+                           model_note, band, desc, fem, points, timings, t_all, say, frame, polarity)
     return LabDiagnosis(out, paths, diagnosis, tuple(comparisons), pairing, tuple(info), timings, diagnosis.model)
 
 
 def _write_results(out, setups, names, results, frfs, pairing, test_modes, fe, diagnosis, comparisons, info,
-                   model_note, band, desc, fem, points, timings, t_all, say, frame) -> dict:
+                   model_note, band, desc, fem, points, timings, t_all, say, frame, polarity) -> dict:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -568,6 +572,7 @@ def _write_results(out, setups, names, results, frfs, pairing, test_modes, fe, d
     from ema.modes_io import write_modeset
     from ema.plot import plot_stabilisation, plot_synthesis
     from ema.plot_pairing import plot_mac
+    from ema.polarity import polarity_findings
     from receptance.diagnosis.plot_compare import plot_band_errors, plot_before_after, plot_error_map, plot_peaks
     from receptance.diagnosis.report import write_diagnosis_report
     from receptance.model_io import save_model
@@ -587,6 +592,8 @@ def _write_results(out, setups, names, results, frfs, pairing, test_modes, fe, d
                                              plt)
     pairing.to_csv(out / "pairing.csv")
     paths["pairing"] = out / "pairing.csv"
+    polarity.to_csv(out / "channel_polarity.csv", index=False, float_format="%.6g")
+    paths["channel_polarity"] = out / "channel_polarity.csv"
     figures["mac"] = _save(plot_mac(pairing, test_modes, fe), figdir / "mac.png", plt)
     c0 = comparisons[0]
     figures["error_map"] = _save(plot_error_map(c0), figdir / "error_map.png", plt)
@@ -644,6 +651,7 @@ def _write_results(out, setups, names, results, frfs, pairing, test_modes, fe, d
                                for r in c.bands.itertuples()]} for lab, c in zip(labels, comparisons)]
     doc["setups"] = info
     doc["pairing"] = pairing.table
+    doc["channel_polarity"] = polarity_findings(polarity)
     doc["model"] = model_doc
     doc["description"] = desc.to_dict()
     doc["frame"] = {"rotation_fe_to_railway": frame.rotation.tolist(), "note": frame.describe(),
@@ -662,6 +670,7 @@ def _write_results(out, setups, names, results, frfs, pairing, test_modes, fe, d
     write_diagnosis_report(
         paths["report"], diagnosis=diagnosis, comparisons=comparisons, figures=figures, setups_info=info,
         pairing_table=pairing.table, timings=timings, model_note=model_note, inputs=inputs,
+        polarity=polarity_findings(polarity),
         files={k: str(v) for k, v in paths.items() if not k.startswith("figure:")}, model_doc=model_doc)
     say(f"report written: {paths['report']}")
     return paths
