@@ -62,12 +62,12 @@ from estimator.contact_angles import CurvingModel, contact_angles
 from estimator.contact_filter import contact_gain
 from estimator.corrugation import MIN_PROMINENCE_DB, classify, model_resonances, spectral_peak
 from estimator.errors import ChannelError, ConfigurationError, NoValidDataError, WheelbaseError
-from estimator.lead_trail import MIN_CORRELATION, LeadTrail, arrangement_findings, lead_trail
-from estimator.inversion import (TimeIrregularity, _log_smooth_rms, check_sensor_mounting, check_wheelset_geometry,
+from estimator.inversion import (TimeIrregularity, check_sensor_mounting, check_wheelset_geometry,
                                  condition_by_band, invert, model_channels, rail_coupling, sample_many,
                                  wheelset_transfer)
 from estimator.io import LineDescription, read_line, read_run
 from estimator.io.sensors import check_sensors, read_sensors
+from estimator.lead_trail import MIN_CORRELATION, LeadTrail, arrangement_findings, lead_trail
 from estimator.orientation import Orientation, orientation
 from estimator.qc import check_run, glitches
 from estimator.results import FieldEstimate, ProfileEstimate
