@@ -439,29 +439,34 @@ transfer_classes = _class_weights
 #: 0.56, 0.40, 0.49 at 0.5, 1, 2, 2.5 kHz (one 2 kHz run at the 0.3 threshold); from 52 mm 0.67, 0.75, 0.75, 0.76,
 #: the wheelbase within 0.3 mm of the vehicle's (tests/test_field_bogie_coupling.py).
 WHEELBASE_PATCH_LENGTHS = 5.0
-#: Chainage [m] over which the channels are checked when the wheelbase is given (measured, the whole run's
-#: correlations serve both). A correlation over wavelengths of 0.05-1.2 m on 300 m has a standard error of about
-#: 1/sqrt(300 m / 0.05 m) ≈ 0.013, against the check's 0.3; the whole run would cost ~13 % of a 150 s run's estimate.
+#: Chainage [m] over which the channels are checked. A correlation over wavelengths of 0.05-1.2 m on 300 m has a
+#: standard error of about 1/sqrt(300 m / 0.05 m) ≈ 0.013, against the check's 0.3; the whole run would cost ~13 %
+#: of a 150 s run's estimate.
 ARRANGEMENT_CHECK_SPAN_M = 300.0
 #: preference among a wheelset's estimates of a rail for the lead/trail correlation
 _WHEELBASE_KINDS = ("vertical", "vertical_lateral", "half")
+#: ... and for the channel check: the half model's estimate of a rail flips exactly with its channel (a flipped
+#: channel's rail correlates at -0.65 on a synthetic run, against -0.38 through the vertical model, which mixes the
+#: two sides)
+_CHECK_KINDS = ("half", "vertical", "vertical_lateral")
 
 
 def _lead_trail(fm: FieldModel, tis: Mapping, track: OdometryTrack, orient: Orientation, lam_min: float,
-                span_m: float | None = None) -> LeadTrail | None:
-    """The two wheelsets' estimates of each rail (:data:`_WHEELBASE_KINDS` first), cross-correlated over the
+                span_m: float | None = None, kinds: tuple[str, ...] | None = None) -> LeadTrail | None:
+    """The two wheelsets' estimates of each rail (``kinds`` in order of preference, :data:`_WHEELBASE_KINDS` by
+    default), cross-correlated over the
     wavelengths from ``max(λ_min, WHEELBASE_PATCH_LENGTHS · 2 a_x)`` (the Hertz patch, thesis eq. 2.5) to the
     shortest wheelbase searched (:func:`estimator.lead_trail.lead_trail`); None without both wheelsets.
 
     An estimate's rows are the vehicle sides it has (``TimeIrregularity.sides``): a half model of a wheelset without
     its left vertical channel holds rail R in row 0. Pairing by rail (``orient.rail_of_side``), not by row,
     compares the same rail. ``span_m``: only the stretch of that length where the most of the estimates are
-    valid (the channel check with a given wheelbase, :data:`ARRANGEMENT_CHECK_SPAN_M`), not the whole run.
+    valid (the channel check, :data:`ARRANGEMENT_CHECK_SPAN_M`), not the whole run.
     """
     chosen: dict[tuple[int, str], tuple[tuple[int, str], int]] = {}
     for w in (1, 2):
         for side in "LR":
-            key = next((k for k in _WHEELBASE_KINDS if (w, k) in tis and side in tis[(w, k)].sides), None)
+            key = next((k for k in kinds or _WHEELBASE_KINDS if (w, k) in tis and side in tis[(w, k)].sides), None)
             if key is not None:
                 chosen[(w, orient.rail_of_side[side])] = ((w, key), tis[(w, key)].sides.index(side))
     if not any(w == 1 for w, _ in chosen) or not any(w == 2 for w, _ in chosen):
@@ -487,10 +492,13 @@ def _lead_trail(fm: FieldModel, tis: Mapping, track: OdometryTrack, orient: Orie
     return lead_trail(profiles, dx, lam_lo, orient.wheelset_offset_sign[1], WHEELBASE_RANGE_M)
 
 
-def _check_arrangement(run: Run, lt: LeadTrail | None, orient: Orientation) -> None:
+def _check_arrangement(run: Run, fm: FieldModel, tis: Mapping, track: OdometryTrack, orient: Orientation,
+                       lam_min: float) -> None:
     """Refuse a run whose two wheelsets' estimates contradict the sensor table (a channel of the wrong sign, sides
     or wheelsets swapped: :func:`estimator.lead_trail.arrangement_findings`): every estimate would be wrong, or
-    on the wrong rail, and the lead/trail lag meaningless."""
+    on the wrong rail, and the lead/trail lag meaningless. Read on :data:`ARRANGEMENT_CHECK_SPAN_M` of the run,
+    :data:`_CHECK_KINDS` first."""
+    lt = _lead_trail(fm, tis, track, orient, lam_min, ARRANGEMENT_CHECK_SPAN_M, _CHECK_KINDS)
     if lt is None:
         return
     names = {}
@@ -832,8 +840,8 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
     if cfg.wheelbase_m is not None:
         wb, wb_src = cfg.wheelbase_m, "given"
         if scale_from_wb:
+            _check_arrangement(run, fm, tis, track, orient, lam_min)
             lt = _lead_trail(fm, tis, track, orient, lam_min)
-            _check_arrangement(run, lt, orient)
             checked = True
             track, scale_why = _odometer_scale_from_wheelbase(fm, lt, track, wb)
             if track.scale_source != "odometer":
@@ -844,9 +852,9 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
                                     f"chainage: {fixed[0].reason}")
                 log.info("%s: %s", run.source, fixed[0].reason)
     else:
-        lt = _lead_trail(fm, tis, track, orient, lam_min)
         # a channel of the wrong sign or on the wrong side would otherwise surface as an unmeasurable wheelbase
-        _check_arrangement(run, lt, orient)
+        _check_arrangement(run, fm, tis, track, orient, lam_min)
+        lt = _lead_trail(fm, tis, track, orient, lam_min)
         checked = True
         est, contrast = lt.wheelbase() if lt is not None else (None, 0.0)
         rails = lt.rails if lt is not None else ()
@@ -968,7 +976,7 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
                               f"both wheelsets for the coupled estimate")
     if not checked:  # the wheelbase was given: the channels checked on the final estimates
         t0 = time.perf_counter()
-        _check_arrangement(run, _lead_trail(fm, tis, track, orient, lam_min, ARRANGEMENT_CHECK_SPAN_M), orient)
+        _check_arrangement(run, fm, tis, track, orient, lam_min)
         timings["wheelbase"] += time.perf_counter() - t0
     # ---- space, comb, indexes per wheelset
     t0 = time.perf_counter()
