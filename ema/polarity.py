@@ -46,32 +46,36 @@ MIN_SHARE_OF_MEAN = 0.25
 MIN_INFORMATIVE_GAIN = 0.005
 
 
-def _captured(C: np.ndarray, cluster: list[int], x: np.ndarray) -> tuple[float, np.ndarray]:
-    """Energy of ``x`` in the span of the cluster's FE shapes at its DOFs, as it is and with each row negated."""
-    U = _subspace(C[:, cluster])
+def _captured(U: np.ndarray, x: np.ndarray) -> tuple[float, np.ndarray]:
+    """Energy of ``x`` in the span ``U`` (orthonormal columns: a cluster's FE shapes at the DOFs ``x`` has), as it
+    is and with each row negated."""
     a = U.conj().T @ x  # the shape's coordinates in the cluster's subspace
     # row j negated: a - 2 conj(U_j) x_j for every j at once
     a_neg = a[None, :] - 2.0 * U.conj() * x[:, None]
     return float(np.sum(np.abs(a) ** 2)), np.sum(np.abs(a_neg) ** 2, axis=1)
 
 
-def _table(test: ModeSet, C: np.ndarray, clusters, blocks) -> pd.DataFrame:
-    """One verdict per channel on the shapes as they are (:func:`channel_polarity`'s columns)."""
+def _table(test: ModeSet, C: np.ndarray, clusters, blocks, spans: dict) -> pd.DataFrame:
+    """One verdict per channel on the shapes as they are (:func:`channel_polarity`'s columns). ``spans`` keeps each
+    cluster's subspace per set of measured DOFs across modes and calls (the modes of a setup share theirs)."""
     phi = test.shapes
     n_dof = len(test.dofs)
     gains = np.full((len(test), n_dof), np.nan)
     for i in range(len(test)):
         best = np.zeros(1 + n_dof)  # best subspace MAC over the clusters: as measured, then row j negated
         weighty = np.zeros(n_dof, bool)
-        for cluster in clusters:
+        for k, cluster in enumerate(clusters):
             captured = np.zeros(1 + n_dof)
             total = 0.0
             for rows in blocks:
                 ok = rows & np.isfinite(phi[:, i])
                 if not ok.any():
                     continue
+                key = (k, ok.tobytes())
+                if key not in spans:
+                    spans[key] = _subspace(C[np.ix_(ok, cluster)])
                 x = phi[ok, i]
-                cap, cap_neg = _captured(C[ok], cluster, x)
+                cap, cap_neg = _captured(spans[key], x)
                 captured[0] += cap
                 captured[1:] += cap
                 captured[1 + np.flatnonzero(ok)] += cap_neg - cap
@@ -129,7 +133,8 @@ def channel_polarity(test: ModeSet, fe: FEModes, pairing: Pairing, *, tolerance:
     """
     C = fe_shapes_at_dofs(fe, test.channels, tolerance=tolerance)
     blocks = _setup_blocks(test)
-    table = _table(test, C, pairing.clusters, blocks)
+    spans: dict = {}
+    table = _table(test, C, pairing.clusters, blocks, spans)
     # one flipped channel also costs its neighbours' modes a little: explain the strongest suspect first (its row
     # negated back), then look again, until no channel is left that its negation would still improve
     shapes = test.shapes.copy()
@@ -142,7 +147,7 @@ def channel_polarity(test: ModeSet, fe: FEModes, pairing: Pairing, *, tolerance:
         j = int(now.loc[candidates, "total_gain"].idxmax())
         found.append(j)
         shapes[j] = -shapes[j]
-        now = _table(replace(test, shapes=shapes), C, pairing.clusters, blocks)
+        now = _table(replace(test, shapes=shapes), C, pairing.clusters, blocks, spans)
     table["suspect"] = np.isin(np.arange(len(table)), found)
     return table
 
