@@ -40,7 +40,12 @@ runs of samples no quality-control finding masks; each is inverted on its
 own (nothing is interpolated over a gap) and ``edge_s`` at both ends — the
 duration holding 99.9 % of the inverse filter's impulse-response energy —
 is dropped (at most 1 s: the longest tails, from lightly damped
-antiresonances, hold less than 0.1 % of the energy beyond it).
+antiresonances, hold less than 0.1 % of the energy beyond it). Validity is
+per estimated side: a side needs only the channels its row of ``T`` (and of
+the coupling term) reads. The half model's sides are SISO, so a channel
+masked on part of the run leaves the other side's estimate whole there
+(its samples enter as zeros, and its own side is dropped ``edge_s`` beyond
+the gap); a vertical model mixes both sides and loses both.
 
 **Contact angles along the run** (vertical + lateral model): ``T`` depends on
 ``θ_L, θ_R``. The run is inverted with the tangent-track angles and with each
@@ -640,6 +645,9 @@ class TimeIrregularity:
     sides: tuple[str, ...]
     fs: float
     segments: tuple[tuple[float, float, float, np.ndarray], ...]
+    #: seconds each side is estimated, when a side's own gaps are NaN inside the stretches (:func:`invert`);
+    #: empty: every side over all of :attr:`valid_time`
+    side_time_s: tuple[float, ...] = ()
 
     def sample(self, t: np.ndarray) -> np.ndarray:
         """Values (n_sides, len(t)) at times ``t`` (NaN where no valid stretch covers ``t``)."""
@@ -660,6 +668,22 @@ class TimeIrregularity:
     @property
     def valid_time(self) -> float:
         return float(sum(v1 - v0 for _, v0, v1, _ in self.segments))
+
+    def estimated_sides(self) -> "TimeIrregularity":
+        """This estimate without the sides it has no valid sample of (a half model whose one channel is masked
+        wherever the other's is not): a rail is estimated or absent, never an empty row."""
+        time = self.valid_time_by_side
+        keep = time > 0
+        if keep.all() or not keep.any():
+            return self
+        return TimeIrregularity(self.kind, self.wheelset, tuple(s for s, k in zip(self.sides, keep) if k), self.fs,
+                                tuple((a, b, c, y[keep]) for a, b, c, y in self.segments),
+                                tuple(float(t) for t in time[keep]))
+
+    @property
+    def valid_time_by_side(self) -> np.ndarray:
+        """Seconds each side is estimated (a side's own gaps are NaN inside a stretch, :func:`invert`)."""
+        return np.array(self.side_time_s) if self.side_time_s else np.full(len(self.sides), self.valid_time)
 
 
 def sample_many(tis: Sequence[TimeIrregularity], t: np.ndarray) -> list[np.ndarray]:
@@ -692,8 +716,9 @@ def invert(acc: np.ndarray, t0: float, fs: float, valid: np.ndarray, transfers: 
         The accelerations of ``transfers[0].channels`` [m/s²], in that order.
     t0, fs : float
         Time of the first sample [s] and sampling rate [Hz].
-    valid : ndarray of bool (n,)
-        Samples no quality-control finding masks for these channels.
+    valid : ndarray of bool (n,) or (n_channels, n)
+        Samples no quality-control finding masks: for all these channels, or per channel. A side's estimate
+        is valid where every channel its row of ``T`` reads is (:func:`side_dependence`).
     transfers : sequence of WheelsetTransfer
         One per set of contact angles (same model, wheelset and channels).
     weights : sequence of ndarray (n,), optional
@@ -704,7 +729,8 @@ def invert(acc: np.ndarray, t0: float, fs: float, valid: np.ndarray, transfers: 
     coupled : (acc_other, valid_other, transfers_other, couplings), optional
         The other wheelset of the bogie (same time base): its accelerations, valid samples, one transfer per
         class (with ``P``) and the rail coupling per class (:func:`rail_coupling`); its forces' share of the
-        rail deflection is added. A sample counts as valid only when both wheelsets' are.
+        rail deflection is added (``valid_other`` for all its channels or per channel). A side's sample counts
+        as valid only when the other wheelset's channels its coupling term reads are valid too.
 
     Returns
     -------
@@ -718,20 +744,24 @@ def invert(acc: np.ndarray, t0: float, fs: float, valid: np.ndarray, transfers: 
     edge = max(tr.edge_s for tr in transfers) if edge_s is None else max(edge_s, *(tr.edge_s for tr in transfers))
     e = int(math.ceil(edge * fs))
     grid_df = float(tr0.freqs_hz[1] - tr0.freqs_hz[0])
+    min_len = 2 * e + int(fs)  # a stretch must outlast its two edges by >= 1 s
+    ok_in = np.broadcast_to(np.asarray(valid, bool), acc.shape)
+    side_ok = side_validity(valid, transfers, *(coupled[1:] if coupled is not None else ()))
     if coupled is not None:
         acc_o, valid_o, transfers_o, couplings = coupled
-        valid = valid & valid_o
+        ok_o = np.broadcast_to(np.asarray(valid_o, bool), acc_o.shape)
+    union = side_ok.any(axis=0)
+    per_side = not (side_ok == union).all()
     segs = []
-    for a, b in _stretches(valid, 2 * e + int(fs)):  # a stretch must outlast its two edges by >= 1 s
-        x = acc[:, a:b]
-        x = x - x.mean(axis=1, keepdims=True)
+    side_time = np.zeros(side_ok.shape[0])
+    for a, b in _stretches(union, min_len):
+        x = _zero_invalid(acc[:, a:b], ok_in[:, a:b])
         n = b - a
         nfft = sfft.next_fast_len(n + e)
         X = sfft.rfft(x, n=nfft, axis=1)
         fr = np.arange(X.shape[1]) * fs / nfft
         if coupled is not None:
-            xo = acc_o[:, a:b]
-            Xo = sfft.rfft(xo - xo.mean(axis=1, keepdims=True), n=nfft, axis=1)
+            Xo = sfft.rfft(_zero_invalid(acc_o[:, a:b], ok_o[:, a:b]), n=nfft, axis=1)
         y = np.zeros((len(tr0.sides), UPSAMPLE * nfft))
         for k, (tr, w) in enumerate(zip(transfers, weights)):
             ws = w[a:b]
@@ -746,6 +776,83 @@ def invert(acc: np.ndarray, t0: float, fs: float, valid: np.ndarray, transfers: 
             yc = sfft.irfft(Y, n=UPSAMPLE * nfft, axis=1) * UPSAMPLE
             wu = np.interp(np.arange(UPSAMPLE * nfft) / UPSAMPLE, np.arange(n), ws, right=0.0)
             y += yc * wu
+        if per_side:
+            for k in range(y.shape[0]):
+                keep, kept_s = _kept_upsampled(side_ok[k, a:b], e, min_len, y.shape[1], fs)
+                y[k, ~keep] = np.nan
+                side_time[k] += kept_s
         t_first = t0 + a / fs
         segs.append((t_first, t0 + (a + e) / fs, t0 + (b - 1 - e) / fs, y[:, :UPSAMPLE * n]))
-    return TimeIrregularity(tr0.kind, tr0.wheelset, tr0.sides, fs, tuple(segs))
+    return TimeIrregularity(tr0.kind, tr0.wheelset, tr0.sides, fs, tuple(segs),
+                            tuple(float(t) for t in side_time) if per_side else ())
+
+
+def side_dependence(transfers: Sequence[WheelsetTransfer], transfers_other: Sequence[WheelsetTransfer] = (),
+                    couplings: Sequence[np.ndarray] = ()) -> tuple[np.ndarray, np.ndarray | None]:
+    """Which channels each estimated side reads: ``(own, other)``, boolean (n_sides, n_channels) from the
+    non-zero entries of ``T`` at any frequency, and (n_sides, n_channels_other) from those of the coupling term
+    ``C B'⁺_α`` (None without it). The half model's ``T`` is diagonal and the coupling joins the same rail only,
+    so a half model's side reads its own channel (and the other wheelset's on its rail); the other models mix
+    every channel."""
+    own = np.zeros(transfers[0].T.shape[1:], bool)
+    for tr in transfers:
+        own |= (tr.T != 0).any(axis=0)
+    if not len(couplings):
+        return own, None
+    other = np.zeros((own.shape[0], transfers_other[0].P.shape[2]), bool)
+    for tro, C in zip(transfers_other, couplings):
+        # side s reads channel j when some force s' of the other wheelset does (P) and reaches s (C), at any
+        # frequency: the patterns, not the product, which could cancel at one frequency
+        reach = (C != 0).any(axis=0).astype(int) @ (tro.P != 0).any(axis=0).astype(int)
+        other |= reach > 0
+    return own, other
+
+
+def side_validity(valid: np.ndarray, transfers: Sequence[WheelsetTransfer], valid_other: np.ndarray | None = None,
+                  transfers_other: Sequence[WheelsetTransfer] = (), couplings: Sequence[np.ndarray] = ()
+                  ) -> np.ndarray:
+    """Samples (n_sides, n) at which each side's estimate may be formed: every channel it reads is valid
+    (:func:`side_dependence`; ``valid`` and ``valid_other`` for all channels, (n,), or per channel), before the
+    inverse filter's edges are dropped."""
+    n = np.shape(valid)[-1]
+    ok = np.broadcast_to(np.asarray(valid, bool), (len(transfers[0].channels), n))
+    dep, dep_o = side_dependence(transfers, transfers_other, couplings)
+    out = np.stack([ok[d].all(axis=0) for d in dep])
+    if dep_o is not None:
+        ok_o = np.broadcast_to(np.asarray(valid_other, bool), (dep_o.shape[1], n))
+        out &= np.stack([ok_o[d].all(axis=0) for d in dep_o])
+    return out
+
+
+def side_valid_time(valid: np.ndarray, transfers: Sequence[WheelsetTransfer], fs: float,
+                    edge_s: float | None = None) -> np.ndarray:
+    """Seconds each side of ``transfers`` would be estimated by :func:`invert` without the coupling, from the
+    validity alone (``valid`` as there): a coupled inversion that leaves a side none of them has lost it."""
+    edge = max(tr.edge_s for tr in transfers) if edge_s is None else max(edge_s, *(tr.edge_s for tr in transfers))
+    e = int(math.ceil(edge * fs))
+    return np.array([sum(q - 1 - 2 * e - p for p, q in _stretches(ok, 2 * e + int(fs))) / fs
+                     for ok in side_validity(valid, transfers)])
+
+
+def _zero_invalid(x: np.ndarray, ok: np.ndarray) -> np.ndarray:
+    """Rows of ``x`` without their mean (over their valid samples) and zero where invalid: a masked sample
+    (NaN, clipped) must not reach the spectrum of any side, and a side that does not read the row is unaffected
+    by its zeros."""
+    if ok.all():
+        return x - x.mean(axis=1, keepdims=True)
+    n_ok = np.maximum(ok.sum(axis=1, keepdims=True), 1)
+    xz = np.where(ok, x, 0.0)
+    return np.where(ok, xz - xz.sum(axis=1, keepdims=True) / n_ok, 0.0)
+
+
+def _kept_upsampled(ok: np.ndarray, e: int, min_len: int, size: int, fs: float) -> tuple[np.ndarray, float]:
+    """Upsampled samples (``UPSAMPLE`` per sample, ``size`` of them) inside a side's own valid stretches of
+    at least ``min_len`` samples, ``e`` dropped at both ends of each (the inverse filter's reach into a gap
+    where that side's channels entered as zeros), and their duration [s] as :attr:`TimeIrregularity.valid_time`
+    counts a stretch's."""
+    keep = np.zeros(size, bool)
+    time = 0.0
+    for p, q in _stretches(ok, min_len):
+        keep[UPSAMPLE * (p + e):UPSAMPLE * (q - 1 - e) + 1] = True
+        time += (q - 1 - 2 * e - p) / fs
+    return keep, time

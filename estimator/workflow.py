@@ -64,7 +64,7 @@ from estimator.corrugation import MIN_PROMINENCE_DB, classify, model_resonances,
 from estimator.errors import ChannelError, ConfigurationError, NoValidDataError, WheelbaseError
 from estimator.inversion import (TimeIrregularity, check_sensor_mounting, check_wheelset_geometry,
                                  condition_by_band, invert, model_channels, rail_coupling, sample_many,
-                                 wheelset_transfer)
+                                 side_valid_time, side_validity, wheelset_transfer)
 from estimator.io import LineDescription, read_line, read_run
 from estimator.io.sensors import check_sensors, read_sensors
 from estimator.lead_trail import MIN_CORRELATION, LeadTrail, arrangement_findings, lead_trail
@@ -615,15 +615,16 @@ def _nothing_estimated(run: Run, skipped: list[str]) -> NoValidDataError:
 
 # --------------------------------------------------------------------------- the workflow
 def _coupling_valid(run, idx_o: np.ndarray, w: int, wo: int, steps: list) -> np.ndarray:
-    """Samples of wheelset ``wo``'s channels ``idx_o`` its contact forces may be taken from for wheelset ``w``'s
-    rail coupling: valid ones, and saturated ones up to ``MAX_COUPLING_SATURATED_SHARE`` (stated and logged)."""
-    strict = ~run.mask.masked[idx_o].any(axis=0)
-    loose = run.mask.coupling_valid(idx_o)
+    """Samples of wheelset ``wo``'s channels ``idx_o`` (per channel, rows in that order) its contact forces may
+    be taken from for wheelset ``w``'s rail coupling: valid ones, and saturated ones up to
+    ``MAX_COUPLING_SATURATED_SHARE`` of the run (stated and logged)."""
+    strict = ~run.mask.masked[idx_o]
+    loose = ~(run.mask.masked[idx_o] & ~run.mask.saturated[idx_o])  # Mask.coupling_valid, per channel
     # only samples a front end can hold at its full scale: never a corrupt one (NaN, or beyond what an axlebox
     # produces, estimator.qc.glitches), whatever mask a caller built
     acc_o = run.acceleration[idx_o]
-    loose &= np.isfinite(acc_o).all(axis=0) & ~glitches(acc_o).any(axis=0) | strict
-    extra = loose & ~strict
+    loose &= np.isfinite(acc_o) & ~glitches(acc_o) | strict
+    extra = (loose & ~strict).any(axis=0)
     if not extra.any():
         return strict
     share = float(extra.mean())
@@ -700,6 +701,16 @@ def _outside_trackforms(fm: FieldModel, chains: dict[int, np.ndarray]) -> list[s
             out.append(f"wheelset {w} passes chainage {where}, which no trackform section of the line holds (they "
                        f"cover {', '.join(f'{a:g}-{b:g} m' for a, b, _ in sections[:6])}): receptance's default "
                        "trackform (Trackform()) is used there")
+    return out
+
+
+def _estimated_sides(run, steps: list, ti: TimeIrregularity) -> TimeIrregularity:
+    """``ti`` without the sides it has no valid stretch of, said (:meth:`TimeIrregularity.estimated_sides`)."""
+    out = ti.estimated_sides()
+    gone = [s for s in ti.sides if s not in out.sides]
+    if gone:
+        _say_once(run, steps, f"wheelset {ti.wheelset}, {ti.kind}: vehicle side(s) {', '.join(gone)} not estimated (the "
+                              f"channels they read have no valid stretch long enough); the other side is")
     return out
 
 
@@ -821,13 +832,13 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
             if defer:
                 continue
             idx = sub["row"].to_numpy(int)
-            valid = ~run.mask.masked[idx].any(axis=0)
+            valid = ~run.mask.masked[idx]  # per channel: a half model's side needs its own only
             ti = invert(run.acceleration[idx], run.t0, fs, valid, transfers, [c[2] for c in classes],
                         edge_s=edges[w])
             if ti.valid_time <= 0:
                 skipped.append(f"wheelset {w}, {kind}: no valid stretch long enough after quality control")
                 continue
-            tis[(w, kind)] = ti
+            tis[(w, kind)] = _estimated_sides(run, steps, ti)
     if not tis and not defer:
         raise _nothing_estimated(run, skipped)
     timings["inversion"] = time.perf_counter() - t0
@@ -893,9 +904,10 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
             sources = [k for k in _PRIMARY if k in other and ((wo, k) in tis or defer)]
             for kind, sub, classes, transfers in plans_by_w.get(w, []):
                 idx = sub["row"].to_numpy(int)
-                valid = ~run.mask.masked[idx].any(axis=0)
+                valid = ~run.mask.masked[idx]
                 if not ((w, kind) in tis or defer):
                     continue  # no valid stretch of its own
+                own_time = side_valid_time(valid, transfers, fs, max(edges.values()))
                 for ko in sorted(sources, key=lambda k: k != kind):
                     cls, trs = classes, transfers
                     if ko == "vertical_lateral" and kind != "vertical_lateral":
@@ -919,13 +931,16 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
                     ti = invert(run.acceleration[idx], run.t0, fs, valid, trs, [c[2] for c in cls],
                                 edge_s=max(edges.values()),
                                 coupled=(run.acceleration[idx_o], valid_o, trs_o, cps))
-                    if ti.valid_time <= 0:
-                        continue
-                    tis[(w, kind)] = ti
+                    kept = ti.valid_time_by_side
+                    if ti.valid_time <= 0 or np.any((kept <= 0) & (own_time > 0)):
+                        continue  # a side the coupling leaves nothing of: the model as a whole tries the next
+                    tis[(w, kind)] = _estimated_sides(run, steps, ti)
                     coupled.append(f"{w}/{kind}")
                     if ko != kind:
                         other_model.append(f"{w}/{kind} from {wo}/{ko}")
-                    lost = float(np.count_nonzero(valid & ~valid_o)) / fs
+                    # own samples the coupling costs a side (the other wheelset's channels it reads masked)
+                    lost = float(np.max(np.count_nonzero(side_validity(valid, trs) & ~side_validity(
+                        valid, trs, valid_o, trs_o, cps), axis=1))) / fs
                     if lost > 0:
                         holes.append(f"{w}/{kind} {lost:.1f} s")
                     for note in _coupling_gaps(w, kind, wo, ko, cls, trs[0].sides, trs_o[0].sides, orient):
@@ -943,7 +958,7 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
                         ti = invert(run.acceleration[idx], run.t0, fs, valid, transfers, [c[2] for c in classes],
                                     edge_s=edges[w])
                         if ti.valid_time > 0:
-                            tis[(w, kind)] = ti
+                            tis[(w, kind)] = _estimated_sides(run, steps, ti)
                         else:
                             skipped.append(f"wheelset {w}, {kind}: no valid stretch long enough after quality "
                                            f"control")
@@ -955,7 +970,8 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
         if holes:
             _say_once(run, steps, f"coupled estimates leave out their own valid samples where the other wheelset's "
                                   f"channels are masked, each hole widened by the inverse filter's edges (the "
-                                  f"coupling needs both; holes in the profile, no uncoupled patch): "
+                                  f"coupling needs both; holes in the profile, no uncoupled patch; a half model's "
+                                  f"side only where the other's channel on its rail is masked): "
                                   f"{', '.join(holes)}")
         for why in dict.fromkeys(alone_why.values()):
             alone = [f"{w}/{kind}" for (w, kind) in tis if alone_why.get((w, kind)) == why]

@@ -311,10 +311,10 @@ def test_isolated_non_physical_spikes_are_glitches_not_clipping_and_feed_no_coup
     assert run.mask.masked[i, spikes].all() and not run.mask.saturated.any()
     idx = np.array([i, run.index("ACC_W1R_Z")])
     steps: list = []
-    assert not _coupling_valid(run, idx, 2, 1, steps)[spikes].any()
+    assert not _coupling_valid(run, idx, 2, 1, steps)[0, spikes].any()  # per channel: ACC_W1L_Z's row
     # whatever mask a caller builds: a sample beyond what an axlebox produces is never taken as saturated
     forged = replace(run.mask, saturated=run.mask.masked.copy())
-    assert not _coupling_valid(replace(run, mask=forged), idx, 2, 1, steps)[spikes].any()
+    assert not _coupling_valid(replace(run, mask=forged), idx, 2, 1, steps)[0, spikes].any()
 
 
 # --------------------------------------------------------------------------------------------- S4, S6 geometry
