@@ -17,7 +17,6 @@ from __future__ import annotations
 import _checkout  # noqa: F401  (this checkout's packages first: measure the code beside this script)
 import glob
 import os
-import sys
 import time
 from pathlib import Path
 

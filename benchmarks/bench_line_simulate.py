@@ -15,7 +15,6 @@ from __future__ import annotations
 import _checkout  # noqa: F401  (this checkout's packages first: measure the code beside this script)
 import argparse
 import os
-import sys
 import time
 from pathlib import Path
 

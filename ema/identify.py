@@ -413,7 +413,6 @@ def _search_residual_poles(frf, st: _Fit, *, band, residuals, significance, min_
                     max_nfev=max_nfev,
                 )
             new = trial.residual_poles[-1]
-            fd = new.imag / (2 * np.pi)
             on_side = _out_of_band(new, band)
             sig = trial.residual_delta_cost[-1] / n_par
             gain = 1.0 - trial.cost / base_cost

@@ -70,7 +70,6 @@ def plot_stabilisation(
         raise ValueError(f"indicator must be 'cmif' or 'sum', got {indicator!r}")
     fig, ax = _new_ax(ax, figsize=(10, 6))
     lo, hi = diagram.band_hz
-    fd = diagram.poles.imag / (2 * np.pi)
     keep = diagram.in_band & (diagram.zeta > 0)
     status = diagram.status
     for code in "ofdvs":

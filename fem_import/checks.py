@@ -47,7 +47,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import FEGeometryError, FEImportError, FEReadError, PointToleranceError
+from .errors import FEImportError, FEReadError, PointToleranceError
 
 __all__ = ["POINT_OFFSET_FRACTION", "MAX_MASS_NORMALISED_TRANSLATION", "UNIT_SLIPS", "WHEELSET_SIZE_M",
            "RIGID_RESIDUAL_MAX", "RIGID_GAP_FRACTION", "MassNormalisationError", "RigidBodyMass", "RigidBodyModes",

@@ -224,7 +224,6 @@ def _synthesise(plan: CampaignPlan, setup_name: str, hit: HitPlan) -> tuple[np.n
 
 def _ranges_and_overload(plan: CampaignPlan, setup_name: str, clean: dict[int, tuple]) -> tuple[np.ndarray, int, float]:
     """Channel ranges from the nominal hits, the overloaded channel and the overload hit's amplitude factor."""
-    c = plan.config
     nominal = [h for h in plan.hits[setup_name] if not h.overload]
     peaks = np.max([np.max(np.abs(clean[h.hit][1]), axis=1) for h in nominal], axis=0)
     ranges = _nice_ceil(4.0 * peaks)

@@ -8,7 +8,6 @@ the command with a message naming the file and the item, and write nothing.
 
 from __future__ import annotations
 
-import logging
 import re
 
 import numpy as np

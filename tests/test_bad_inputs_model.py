@@ -9,7 +9,6 @@ message names the file and the offending item.
 from __future__ import annotations
 
 import dataclasses
-import json
 import re
 import warnings
 from pathlib import Path

@@ -482,7 +482,7 @@ def test_nan_in_an_odometry_channel_is_a_gap_judged_like_lost_samples(tmp_path, 
     v[150:150 + lost] = np.nan
     ch[recorded] = (t, v, u)
     table = tmp_path / "one.csv"
-    dropped = "NONE" if both else "POSITION" if recorded == "SPEED" else "SPEED"
+    dropped = "NONE" if both else "POSITION" if recorded == "SPEED" else "SPEED"  # noqa: F841 (read by query)
     sensor_table().query("name != @dropped").to_csv(table, index=False)
     run = read_run(_write(tmp_path, "nan", ch, "parquet"), table)
     ((g0, g1, name),) = run.odometry.gaps

@@ -112,7 +112,6 @@ def test_contact_filter_is_the_hertz_pressure_average_and_its_correction_inverts
 
 def test_band_indexes_do_not_depend_on_the_sampling_step():
     """The decimated band computation gives the same pk-pk at 1 mm and 2.5 mm (a strong line just outside)."""
-    rng = np.random.default_rng(2)
     out = []
     for dx in (1e-3, 2.5e-3):
         x = np.arange(0, 200, dx)

@@ -77,7 +77,7 @@ def test_compiled_comb_equals_the_direct_sum(kernel):
 
 
 def test_circumference_and_polygon_order_from_a_wheel_on_random_rail():
-    C_true, N_nom = 2.5717, 1024
+    C_true = 2.5717
     dx = 2.5e-3
     x = np.arange(0, 400, dx)
     rng = np.random.default_rng(4)

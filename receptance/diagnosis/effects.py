@@ -278,7 +278,7 @@ class RigSuspension(Effect):
         given = hanging_attachment(model, geo, effect=self.name)
         if given is not None:
             names = tuple(p.name for p in given)
-            note = (f"hanging points from the description: "
+            note = ("hanging points from the description: "
                     + ", ".join(f"{p.name} at {np.round(p.xyz, 3).tolist() if p.xyz else 'node'} (node {p.fe_node})"
                                 for p in given))
 

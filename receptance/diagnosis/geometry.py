@@ -68,7 +68,7 @@ import numpy as np
 
 from receptance.dofs import Point
 from receptance.diagnosis.errors import EffectNotApplicable
-from receptance.wheelset_description import MASS_KEYS, MASS_NOTE_RTOL, TABLE_2_1_MASSES, WheelsetDescription
+from receptance.wheelset_description import MASS_NOTE_RTOL, TABLE_2_1_MASSES, WheelsetDescription
 
 __all__ = ["WheelsetGeometry", "wheelset_geometry", "needs_rotations", "moves_with", "TIED_RTOL", "AxleboxAttachment", "axlebox_attachment", "WheelAttachment",
            "wheel_attachment", "hanging_attachment", "total_mass", "removable_mass", "AXIS_FRACTION", "COINCIDE_FRACTION", "JOURNAL_FRACTION",

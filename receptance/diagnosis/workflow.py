@@ -421,7 +421,6 @@ def run_lab_diagnosis(setups, fem: Path, points: Path, out: Path, *, band_hz: tu
         ``receptance.diagnosis.DiagnosisError``) pass through, naming file,
         channel or mode.
     """
-    import pandas as pd
 
     import fem_import
     from ema.channels import read_channels
