@@ -64,7 +64,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Sequence
 
 import numpy as np
@@ -636,7 +636,7 @@ class TimeIrregularity:
     """Irregularity at the wheels of one wheelset as functions of time, per valid stretch.
 
     ``segments`` holds ``(t_first, values (n_sides, n_up))`` with samples at
-    ``t_first + j / (UPSAMPLE fs)``; only the part inside ``[t_valid0, t_valid1]``
+    ``t_first + j / (upsample fs)``; only the part inside ``[t_valid0, t_valid1]``
     (edges dropped) is used.
     """
 
@@ -648,12 +648,14 @@ class TimeIrregularity:
     #: seconds each side is estimated, when a side's own gaps are NaN inside the stretches (:func:`invert`);
     #: empty: every side over all of :attr:`valid_time`
     side_time_s: tuple[float, ...] = ()
+    #: samples per sample of the accelerations (:data:`UPSAMPLE` for the chainage's interpolation)
+    upsample: int = UPSAMPLE
 
     def sample(self, t: np.ndarray) -> np.ndarray:
         """Values (n_sides, len(t)) at times ``t`` (NaN where no valid stretch covers ``t``)."""
         t = np.asarray(t, float)
         out = np.full((len(self.sides), t.size), np.nan)
-        rate = UPSAMPLE * self.fs
+        rate = self.upsample * self.fs
         for t_first, v0, v1, y in self.segments:
             sel = (t >= v0) & (t <= v1)
             if not sel.any():
@@ -676,9 +678,9 @@ class TimeIrregularity:
         keep = time > 0
         if keep.all() or not keep.any():
             return self
-        return TimeIrregularity(self.kind, self.wheelset, tuple(s for s, k in zip(self.sides, keep) if k), self.fs,
-                                tuple((a, b, c, y[keep]) for a, b, c, y in self.segments),
-                                tuple(float(t) for t in time[keep]))
+        return replace(self, sides=tuple(s for s, k in zip(self.sides, keep) if k),
+                       segments=tuple((a, b, c, y[keep]) for a, b, c, y in self.segments),
+                       side_time_s=tuple(float(t) for t in time[keep]))
 
     @property
     def valid_time_by_side(self) -> np.ndarray:
@@ -689,7 +691,7 @@ class TimeIrregularity:
 def sample_many(tis: Sequence[TimeIrregularity], t: np.ndarray) -> list[np.ndarray]:
     """:meth:`TimeIrregularity.sample` of several inversions at the same times (one interpolation when they
     share their valid stretches, as the models of one wheelset usually do)."""
-    if len(tis) > 1 and all(tis[0].same_segments(o) for o in tis[1:]):
+    if len(tis) > 1 and all(tis[0].same_segments(o) and o.upsample == tis[0].upsample for o in tis[1:]):
         rows = [len(ti.sides) for ti in tis]
         stacked = TimeIrregularity(tis[0].kind, tis[0].wheelset, tuple(s for ti in tis for s in ti.sides), tis[0].fs,
                                    tuple((a[0], a[1], a[2], np.concatenate([ti.segments[k][3] for ti in tis]))
@@ -707,7 +709,7 @@ def _stretches(valid: np.ndarray, min_len: int) -> list[tuple[int, int]]:
 
 def invert(acc: np.ndarray, t0: float, fs: float, valid: np.ndarray, transfers: Sequence[WheelsetTransfer],
            weights: Sequence[np.ndarray] | None = None, edge_s: float | None = None,
-           coupled: tuple | None = None) -> TimeIrregularity:
+           coupled: tuple | None = None, upsample: int = UPSAMPLE) -> TimeIrregularity:
     """Invert one wheelset's accelerations with one model (module docstring).
 
     Parameters
@@ -731,6 +733,9 @@ def invert(acc: np.ndarray, t0: float, fs: float, valid: np.ndarray, transfers: 
         class (with ``P``) and the rail coupling per class (:func:`rail_coupling`); its forces' share of the
         rail deflection is added (``valid_other`` for all its channels or per channel). A side's sample counts
         as valid only when the other wheelset's channels its coupling term reads are valid too.
+    upsample : int
+        Output samples per input sample (band-limited interpolation in the frequency domain): :data:`UPSAMPLE`
+        for the chainage's cubic interpolation; 1 where the output is read at the sample times only.
 
     Returns
     -------
@@ -762,7 +767,7 @@ def invert(acc: np.ndarray, t0: float, fs: float, valid: np.ndarray, transfers: 
         fr = np.arange(X.shape[1]) * fs / nfft
         if coupled is not None:
             Xo = sfft.rfft(_zero_invalid(acc_o[:, a:b], ok_o[:, a:b]), n=nfft, axis=1)
-        y = np.zeros((len(tr0.sides), UPSAMPLE * nfft))
+        y = np.zeros((len(tr0.sides), upsample * nfft))
         for k, (tr, w) in enumerate(zip(transfers, weights)):
             ws = w[a:b]
             if not np.any(ws > 0):
@@ -773,18 +778,18 @@ def invert(acc: np.ndarray, t0: float, fs: float, valid: np.ndarray, transfers: 
                 # the other wheelset's contact forces deflect the rail under this one (rail_coupling)
                 Fo = np.einsum("boi,ib->ob", _interp_matrix(fr, grid_df, transfers_o[k].P), Xo)
                 Y += np.einsum("bos,sb->ob", _interp_matrix(fr, grid_df, couplings[k]), Fo)
-            yc = sfft.irfft(Y, n=UPSAMPLE * nfft, axis=1) * UPSAMPLE
-            wu = np.interp(np.arange(UPSAMPLE * nfft) / UPSAMPLE, np.arange(n), ws, right=0.0)
+            yc = sfft.irfft(Y, n=upsample * nfft, axis=1) * upsample
+            wu = np.interp(np.arange(upsample * nfft) / upsample, np.arange(n), ws, right=0.0)
             y += yc * wu
         if per_side:
             for k in range(y.shape[0]):
-                keep, kept_s = _kept_upsampled(side_ok[k, a:b], e, min_len, y.shape[1], fs)
+                keep, kept_s = _kept_upsampled(side_ok[k, a:b], e, min_len, y.shape[1], fs, upsample)
                 y[k, ~keep] = np.nan
                 side_time[k] += kept_s
         t_first = t0 + a / fs
-        segs.append((t_first, t0 + (a + e) / fs, t0 + (b - 1 - e) / fs, y[:, :UPSAMPLE * n]))
+        segs.append((t_first, t0 + (a + e) / fs, t0 + (b - 1 - e) / fs, y[:, :upsample * n]))
     return TimeIrregularity(tr0.kind, tr0.wheelset, tr0.sides, fs, tuple(segs),
-                            tuple(float(t) for t in side_time) if per_side else ())
+                            tuple(float(t) for t in side_time) if per_side else (), upsample)
 
 
 def side_dependence(transfers: Sequence[WheelsetTransfer], transfers_other: Sequence[WheelsetTransfer] = (),
@@ -845,14 +850,15 @@ def _zero_invalid(x: np.ndarray, ok: np.ndarray) -> np.ndarray:
     return np.where(ok, xz - xz.sum(axis=1, keepdims=True) / n_ok, 0.0)
 
 
-def _kept_upsampled(ok: np.ndarray, e: int, min_len: int, size: int, fs: float) -> tuple[np.ndarray, float]:
-    """Upsampled samples (``UPSAMPLE`` per sample, ``size`` of them) inside a side's own valid stretches of
+def _kept_upsampled(ok: np.ndarray, e: int, min_len: int, size: int, fs: float,
+                    upsample: int) -> tuple[np.ndarray, float]:
+    """Upsampled samples (``upsample`` per sample, ``size`` of them) inside a side's own valid stretches of
     at least ``min_len`` samples, ``e`` dropped at both ends of each (the inverse filter's reach into a gap
     where that side's channels entered as zeros), and their duration [s] as :attr:`TimeIrregularity.valid_time`
     counts a stretch's."""
     keep = np.zeros(size, bool)
     time = 0.0
     for p, q in _stretches(ok, min_len):
-        keep[UPSAMPLE * (p + e):UPSAMPLE * (q - 1 - e) + 1] = True
+        keep[upsample * (p + e):upsample * (q - 1 - e) + 1] = True
         time += (q - 1 - 2 * e - p) / fs
     return keep, time

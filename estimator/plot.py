@@ -132,16 +132,17 @@ def plot_spectra(estimate, stretch: str, *, wheelset=None, models=None, referenc
 
 _KIND_COLOURS = {"dropout_nan": "tab:red", "dropout_flat": "tab:purple", "clipping": "tab:orange", "glitch": "gold",
                  "low_speed": "tab:gray", "standstill": "black", "reversing": "tab:brown",
-                 "odometry_jump": "tab:pink"}
+                 "odometry_jump": "tab:pink", "contact_loss": "tab:olive"}
 
 
 def plot_mask_map(estimate, ax=None):
-    """Masked spans along chainage per channel (``*`` = every channel), coloured by reason."""
+    """Masked spans along chainage per channel (``*`` = every channel), coloured by reason; flagged spans (the wheel
+    off the rail, :mod:`estimator.contact_load`) hatched: estimated there, but not the rail's."""
     import matplotlib.pyplot as plt
     from matplotlib.patches import Patch
 
     qc = estimate.qc
-    qc = qc[qc["action"] == "masked"] if not qc.empty else qc
+    qc = qc[qc["action"].isin(["masked", "flagged"])] if not qc.empty else qc
     chans = sorted(set(qc["channel"])) if not qc.empty else []
     if ax is None:
         fig, ax = plt.subplots(figsize=(10, 1.2 + 0.35 * max(len(chans), 1)))
@@ -152,7 +153,8 @@ def plot_mask_map(estimate, ax=None):
             lo, hi = r.chainage_from_m, r.chainage_to_m
             if not np.isfinite(lo):
                 continue
-            ax.barh(i, max(hi - lo, 0.3), left=lo, height=0.6, color=_KIND_COLOURS.get(r.kind, "tab:blue"))
+            ax.barh(i, max(hi - lo, 0.3), left=lo, height=0.6, color=_KIND_COLOURS.get(r.kind, "tab:blue"),
+                    hatch="//" if r.action == "flagged" else None)
     ax.set_yticks(range(len(chans)))
     ax.set_yticklabels(chans)
     xs = [p.chainage_m for p in estimate.profiles.values()]

@@ -65,8 +65,18 @@ def write_report(estimate, path, *, figures: Mapping[str, Path] | None = None,
     share = pd.DataFrame([{"channel": k, "masked_pct": 100 * s} for k, s in e.masked_share.items()])
     parts += [f"<h2>{SECTION_TITLES[1]}</h2>",
               "<p>Every finding is masked (samples excluded; the inversion splits the run there, nothing is "
-              "interpolated over) or rejected (channel not used), and logged with its channel, time and chainage.</p>",
-              _table(share), _table(e.qc, 80), _figure(fig.get("mask_map"), "Masked spans along chainage by reason.")]
+              "interpolated over), rejected (channel not used) or flagged (estimated, but not the rail's: the "
+              "wheel off the rail, <code>contact_loss</code>), and logged with its channel, time and chainage.</p>",
+              _table(share), _table(e.qc, 80),
+              _figure(fig.get("mask_map"), "Masked spans along chainage by reason; flagged spans hatched.")]
+    lifted = e.qc[e.qc["kind"] == "contact_loss"] if not e.qc.empty else e.qc
+    if len(lifted):
+        where = "; ".join(f"{_e(r.channel)} {r.chainage_from_m:.1f}-{r.chainage_to_m:.1f} m"
+                          for r in lifted.head(8).itertuples()) + (" ..." if len(lifted) > 8 else "")
+        parts.append(f"<div class='box warn'>The wheel leaves the rail on {len(lifted)} stretch(es) ({where}): the "
+                     "estimated dynamic contact force exceeds the static wheel load there, the inversion's linear "
+                     "contact does not hold, and the roughness read there is not the rail's. A corrugation this "
+                     "severe is the first thing to grind.</div>")
     if e.skipped:
         parts.append("<div class='box warn'>Not estimated: " + "; ".join(_e(s) for s in e.skipped) + "</div>")
     # 3

@@ -40,7 +40,9 @@ run into a :class:`~estimator.results.FieldEstimate`:
    filter undone (:mod:`estimator.contact_filter`);
 9. EN 13231-3 band indexes where the speed lets the inversion band cover the
    band, exceedance shares; EN 15610 spectra per stretch (line sections and
-   curves) with the ISO 3095 limit; corrugation type (:mod:`estimator.corrugation`).
+   curves) with the ISO 3095 limit; corrugation type (:mod:`estimator.corrugation`);
+10. where the estimated dynamic contact force exceeds the static wheel load, the
+   wheel leaves the rail: flagged (``contact_loss``, :mod:`estimator.contact_load`).
 """
 
 from __future__ import annotations
@@ -60,6 +62,7 @@ from estimator.config import EstimatorConfig
 from estimator.band_caution import band_cautions
 from estimator.contact_angles import CurvingModel, contact_angles
 from estimator.contact_filter import contact_gain
+from estimator.contact_load import contact_force, contact_loss_events
 from estimator.corrugation import MIN_PROMINENCE_DB, classify, model_resonances, spectral_peak
 from estimator.errors import ChannelError, ConfigurationError, NoValidDataError, WheelbaseError
 from estimator.inversion import (TimeIrregularity, check_sensor_mounting, check_wheelset_geometry,
@@ -714,6 +717,19 @@ def _estimated_sides(run, steps: list, ti: TimeIrregularity) -> TimeIrregularity
     return out
 
 
+def _contact_loss(run: Run, fm: FieldModel, plans: list, kind: str, edge_s: float, chainage: np.ndarray,
+                  orient: Orientation) -> list:
+    """Where wheelset ``plans``' estimated dynamic contact force (its model ``kind``) lifts the wheel off the rail
+    (:mod:`estimator.contact_load`)."""
+    _, sub, classes, transfers = next(p for p in plans if p[0] == kind)
+    idx = sub["row"].to_numpy(int)
+    force = contact_force(run.acceleration[idx], run.t0, run.fs, ~run.mask.masked[idx], transfers,
+                          [c[2] for c in classes], edge_s=edge_s)
+    vertical = sub[sub["direction"] == "z"]
+    return contact_loss_events(force, run.t, chainage, fm.config.contact.wheel_load_N, orient.rail_of_side,
+                               dict(zip(vertical["side"], vertical["name"])))
+
+
 def _say_once(run, steps: list, msg: str) -> None:
     """A finding stated once per run however many models meet it."""
     if msg not in steps:
@@ -1005,10 +1021,16 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
     c_nom = 2 * math.pi * r_nom * float(np.median(track.scale))
     spacing = sleeper_spacing(cfg, fm)
     sleeper_steps: list[str] = []
+    lifted: list = []  # contact-loss findings (estimator.contact_load)
+    t_contact = 0.0
     for w in sorted({w for w, _ in tis}):
         offset = orient.wheelset_offset_sign[w] * wb / 2
         t_of = _chainage_to_time(track, offset)
         primary = next(k for k in _PRIMARY if (w, k) in tis)
+        t1 = time.perf_counter()
+        lifted += _contact_loss(run, fm, plans_by_w[w], primary, edges[w], track.chainage_at(t_run) + offset,
+                                orient)
+        t_contact += time.perf_counter() - t1
         dx_c = nice_step(max(dx_target, CIRCUMFERENCE_STEP_M))  # orders up to ~500 need no finer grid
         x_nom = _grid(track, offset, dx_c)
         prof_nom = tis[(w, primary)].sample(t_of(x_nom))
@@ -1061,7 +1083,14 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
             idx = band_indexes(rail, dx, bands, windows, resolved[:, None, :], spectrum=(P, nfft))
             profiles[(w, kind)] = ProfileEstimate(w, orient.role(w), kind, rails, x, dx, irr_sides, rail, v, idx,
                                                   resolved, wheel, conditioning[(w, kind)], passing)
-    timings["space_comb_indexes"] = time.perf_counter() - t0
+    timings["space_comb_indexes"] = time.perf_counter() - t0 - t_contact
+    timings["contact_load"] = t_contact
+    for e in lifted:
+        log.warning("%s: %s", run.source, e.describe())
+    steps.append(f"contact: the estimated dynamic contact force against the static wheel load "
+                 f"{cfg.contact.wheel_load_N / 1e3:.1f} kN: " + (
+                     f"the wheel leaves the rail on {len(lifted)} stretch(es) (contact_loss findings)" if lifted
+                     else "the wheels stay on the rails"))
     steps.append("time -> chainage at " + ", ".join(f"wheelset {w}: dx {1e3 * d:.2f} mm, circumference "
                                                      f"{circ[w].circumference_m:.4f} m" for w, d in dx_used.items())
                  + f"; nominal wheel radius {r_nom:.4f} m; shortest resolved wavelength {1e3 * lam_min:.1f} mm")
@@ -1138,6 +1167,8 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
     timings["tables"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_start
     qc = run.mask.table()
+    if lifted:
+        qc = pd.concat([qc, pd.DataFrame([e.as_dict() for e in lifted], columns=qc.columns)], ignore_index=True)
     return FieldEstimate(
         run_id=run.run_id, source=run.source, header={**{k: getattr(run.header, k) for k in (
             "run_id", "date", "direction", "orientation", "train", "bogie", "line", "leading_end")},

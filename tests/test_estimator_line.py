@@ -136,6 +136,15 @@ def test_nominal_band_peak_to_peak_on_the_corrugated_curve():
         assert r["within_3db_pct"] >= 90.0, r
 
 
+def test_nominal_the_wheels_stay_on_the_rails():
+    """The line's non-linear Hertz contact lost no contact on this run (its truth lists no event), and the
+    estimate flags none: the estimated dynamic force stays within about +/-0.2 of the static load there."""
+    folder, run, fm, est, _ = nominal_case()
+    assert run["contact_loss"] == []
+    assert not (est.qc["kind"] == "contact_loss").any()
+    assert any("the wheels stay on the rails" in s for s in est.processing)
+
+
 def test_nominal_the_corrugated_rail_is_identified_in_both_bands():
     """The corrugated rail's band level exceeds the other rail's in both bands, keeping at least half the truth's contrast."""
     from estimator.reference import window_pk
