@@ -82,7 +82,7 @@ __all__ = ["WheelsetTransfer", "sensor_model", "check_wheelset_geometry", "check
            "regularised_inverse", "tikhonov_inverse",
            "band_window",
            "wheelset_transfer", "TimeIrregularity", "invert", "cubic_sample", "sample_many", "UPSAMPLE",
-           "condition_by_band", "rail_coupling"]
+           "condition_by_band", "rail_coupling", "side_dependence", "side_validity", "side_valid_time"]
 
 log = logging.getLogger("estimator")
 

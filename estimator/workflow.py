@@ -712,8 +712,8 @@ def _estimated_sides(run, steps: list, ti: TimeIrregularity) -> TimeIrregularity
     out = ti.estimated_sides()
     gone = [s for s in ti.sides if s not in out.sides]
     if gone:
-        _say_once(run, steps, f"wheelset {ti.wheelset}, {ti.kind}: vehicle side(s) {', '.join(gone)} not estimated (the "
-                              f"channels they read have no valid stretch long enough); the other side is")
+        _say_once(run, steps, f"wheelset {ti.wheelset}, {ti.kind}: vehicle side(s) {', '.join(gone)} not estimated "
+                              f"(the channels they read have no valid stretch long enough); the other side is")
     return out
 
 

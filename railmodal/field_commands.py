@@ -177,8 +177,8 @@ def add_field_commands(sub) -> None:
                      help="Tikhonov parameter relative to the largest singular value's 1/3-octave envelope "
                           "(default 0.02)")
     est.add_argument("--wheel-load", default=55.0, type=bounded_float("--wheel-load", 1.0, 500.0, unit="kN"),
-                     help="static wheel load [kN] for the Hertz contact stiffness and patch, and the contact-loss check "
-                          "(default 55)")
+                     help="static wheel load [kN] for the Hertz contact stiffness and patch, and the contact-loss "
+                          "check (default 55)")
     est.add_argument("--wheel-radius", default=None, type=bounded_float("--wheel-radius", 0.2, 0.7, unit="m"),
                      help="nominal (e.g. measured, worn) wheel rolling radius [m] for the circumference search, the "
                           "contact angles and the Hertz contact (default: the model's, its contact points' distance "

@@ -2,9 +2,10 @@
 
 Oracle: a pure 60 mm corrugation on rail L through the linear forward map; its contact force in closed form,
 ``F = D⁻¹ n`` (thesis eq. 2.20, full vertical model, rail R smooth) with the rail coupling the bogie's two
-wheelsets as the synthetic run has it, at the frequencies the run's speeds make of it. The contact force ``B⁺_α a`` does not depend on the contact stiffness or the track, so the static load the
-flag compares it with can be set low enough for a 40 µm corrugation to lift the wheel, without a forward map
-that leaves the linear regime.
+wheelsets as the synthetic run has it, at the frequencies the run's speeds make of it. The contact force
+``B⁺_α a`` depends neither on the contact stiffness nor on the track, so the static load the flag compares it
+with can be set low enough for a 40 µm corrugation to lift the wheel, without a forward map that leaves the
+linear regime.
 """
 
 from __future__ import annotations
