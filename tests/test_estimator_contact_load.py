@@ -88,9 +88,9 @@ def test_the_contact_force_is_the_models_own_with_its_sign():
     same irregularity (rail L: 45 and 90 Hz in a phase that makes the force lopsided, so a wrong sign would show;
     rail R: 143 Hz), in the inversion's band: within 3 % RMS on each side; and the flag reads its sign."""
     from estimator.contact_load import contact_force, contact_loss_events
-    from estimator.inversion import sensor_model, wheelset_transfer
+    from estimator.inversion import sensor_model
     from receptance.transfer import full_vertical_transfer
-    from test_estimator_synthetic import forward_accelerations
+    from test_estimator_synthetic import forward_accelerations, wheelset1_transfer
 
     fs, n = 1000.0, 20000
     t = np.arange(n) / fs
@@ -98,16 +98,11 @@ def test_the_contact_force_is_the_models_own_with_its_sign():
                      4e-6 * np.sin(2 * np.pi * 143 * t + 1)])
     model = control_model()
     acc, names = forward_accelerations(model, sensor_table(), 1, irr, fs)
-    chans = sensor_table().iloc[:3].reset_index(drop=True)
-    chans["wheelset"] = chans["wheelset"].astype(int)
-    df = 0.05
-    f = df * np.arange(1, int(fs / 2 / df) + 1)
-    tr = wheelset_transfer(model, chans, "vertical", fs, f_lo=10, f_hi=400, alpha=0.02, df=df,
-                           track=track_frf(f, Trackform()), contact_stiffness=ContactParameters().stiffness())
+    tr = wheelset1_transfer(model, "vertical", fs)
     est = contact_force(acc[[names.index(c) for c in tr.channels]], 0.0, fs, np.ones(n, bool), [tr]).sample(t)
     # the closed form on the record's own frequency lines (the forward map's), 45/90/143 Hz all inside the band
     fb = np.fft.rfftfreq(n, 1 / fs)[1:]
-    m_w, labels = sensor_model(model, chans.iloc[:2])
+    m_w, labels = sensor_model(model, sensor_table().iloc[:2].reset_index(drop=True))
     mt = full_vertical_transfer(m_w, fb, channels=labels, track=track_frf(fb, Trackform()),
                                 contact_stiffness=ContactParameters().stiffness())
     D = np.moveaxis(mt.dynamic_compliance.data, 2, 0)

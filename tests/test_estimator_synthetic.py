@@ -155,6 +155,19 @@ def forward_accelerations(model, sensors: pd.DataFrame, wheelset: int, irr_time:
     return acc, list(sub["name"])
 
 
+def wheelset1_transfer(model, kind: str, fs: float = 1000.0, df: float = 0.05):
+    """Wheelset 1's regularised transfer function of ``kind`` (its three sensors, the default trackform, band
+    10-400 Hz, alpha 0.02): the unit tests' inverse of :func:`forward_accelerations`."""
+    from estimator.inversion import wheelset_transfer
+    from receptance import ContactParameters, Trackform, track_frf
+
+    chans = sensor_table().iloc[:3].reset_index(drop=True)
+    chans["wheelset"] = chans["wheelset"].astype(int)
+    f = df * np.arange(1, int(fs / 2 / df) + 1)
+    return wheelset_transfer(model, chans, kind, fs, f_lo=10, f_hi=400, alpha=0.02, df=df,
+                             track=track_frf(f, Trackform()), contact_stiffness=ContactParameters().stiffness())
+
+
 def forward_bogie(model, sensors: pd.DataFrame, irr: dict, fs: float, wheelbase: float, theta=(0.0, 0.0)) -> dict:
     """Accelerations of both wheelsets' sensors from the irregularities at their wheels, the rail coupling them.
 
@@ -317,21 +330,14 @@ def model():
 
 def test_forward_then_inverse_recovers_a_sinusoid_in_time_whatever_the_model(model):
     """A 45 Hz irregularity on the left wheel (143 Hz on the right) comes back through each model's regularised inverse (< 3 %)."""
-    from estimator.inversion import invert, wheelset_transfer
-    from receptance import ContactParameters, Trackform, track_frf
+    from estimator.inversion import invert
 
     fs, n = 1000.0, 20000
     t = np.arange(n) / fs
     irr = np.vstack([10e-6 * np.sin(2 * np.pi * 45 * t), 4e-6 * np.sin(2 * np.pi * 143 * t + 1)])
     acc, names = forward_accelerations(model, sensor_table(), 1, irr, fs)
-    chans = sensor_table().iloc[:3].reset_index(drop=True)
-    chans["wheelset"] = chans["wheelset"].astype(int)
-    df = 0.05
-    f = df * np.arange(1, int(fs / 2 / df) + 1)
-    trk = track_frf(f, Trackform())
     for kind in ("vertical", "vertical_lateral"):
-        tr = wheelset_transfer(model, chans, kind, fs, f_lo=10, f_hi=400, alpha=0.02, df=df, track=trk,
-                               contact_stiffness=ContactParameters().stiffness())
+        tr = wheelset1_transfer(model, kind, fs)
         order = [names.index(c) for c in tr.channels]
         ti = invert(acc[order], 0.0, fs, np.ones(n, bool), [tr])
         ts = np.arange(4000, 16000) / fs
@@ -346,23 +352,16 @@ def test_validity_is_per_side_where_the_model_reads_one_channel_per_side(model):
     is the same as with the channel alive (to rounding) over the whole stretch; the left side's is NaN over the gap
     and, beyond the inverse filter's edge, within 3 % (RMS) of the live one's. The vertical model, which mixes both
     channels, loses both sides over the gap."""
-    from estimator.inversion import invert, side_dependence, wheelset_transfer
-    from receptance import ContactParameters, Trackform, track_frf
+    from estimator.inversion import invert, side_dependence
 
     fs, n = 1000.0, 20000
     t = np.arange(n) / fs
     rng = np.random.default_rng(7)
     irr = 5e-6 * rng.standard_normal((2, n))
     acc, names = forward_accelerations(model, sensor_table(), 1, irr, fs)
-    chans = sensor_table().iloc[:3].reset_index(drop=True)
-    chans["wheelset"] = chans["wheelset"].astype(int)
-    df = 0.05
-    f = df * np.arange(1, int(fs / 2 / df) + 1)
-    trk = track_frf(f, Trackform())
     gap = (t > 8.0) & (t < 12.0)
     for kind in ("half", "vertical"):
-        tr = wheelset_transfer(model, chans, kind, fs, f_lo=10, f_hi=400, alpha=0.02, df=df, track=trk,
-                               contact_stiffness=ContactParameters().stiffness())
+        tr = wheelset1_transfer(model, kind, fs)
         own, _ = side_dependence([tr])
         assert (own == np.eye(2, dtype=bool)).all() if kind == "half" else own.all()
         x = acc[[names.index(c) for c in tr.channels]]
