@@ -100,7 +100,10 @@ class EstimatorConfig:
     take precedence on that curve (:meth:`curve_angles`); ``bogie_coupling``
     (the rail deflection under each wheelset due to the other wheelset's
     contact forces, :func:`estimator.inversion.rail_coupling`; off: the
-    thesis's single-wheelset models).
+    thesis's single-wheelset models); ``contact_loss_check`` (flag where the
+    estimated dynamic contact force lifts the wheel off the rail,
+    :mod:`estimator.contact_load`; the monitoring's uncertainty variants,
+    which read band levels only, leave it off).
 
     Space: ``wheelbase_m`` (None: measured from the data, see
     :func:`estimator.workflow.estimate_run`), ``comb_revolutions`` (length of
@@ -152,6 +155,7 @@ class EstimatorConfig:
     curve_contact_angles: Mapping | None = None
     trackform_supports: str = "continuous"
     bogie_coupling: bool = True
+    contact_loss_check: bool = True
     wheelbase_m: float | None = None
     comb_revolutions: int = 32
     sleeper_comb: bool = True
@@ -191,6 +195,8 @@ class EstimatorConfig:
                                      f"got {self.trackform_supports!r}")
         if not isinstance(self.bogie_coupling, bool):
             raise ConfigurationError(f"bogie_coupling must be True or False, got {self.bogie_coupling!r}")
+        if not isinstance(self.contact_loss_check, bool):
+            raise ConfigurationError(f"contact_loss_check must be True or False, got {self.contact_loss_check!r}")
         if self.wheelbase_m is not None:
             _rng("wheelbase_m", self.wheelbase_m, 0.5, 10.0, unit="m")
         _rng("comb_revolutions", self.comb_revolutions, 2, 10_000)

@@ -1027,10 +1027,11 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
         offset = orient.wheelset_offset_sign[w] * wb / 2
         t_of = _chainage_to_time(track, offset)
         primary = next(k for k in _PRIMARY if (w, k) in tis)
-        t1 = time.perf_counter()
-        lifted += _contact_loss(run, fm, plans_by_w[w], primary, edges[w], track.chainage_at(t_run) + offset,
-                                orient)
-        t_contact += time.perf_counter() - t1
+        if cfg.contact_loss_check:
+            t1 = time.perf_counter()
+            lifted += _contact_loss(run, fm, plans_by_w[w], primary, edges[w], track.chainage_at(t_run) + offset,
+                                    orient)
+            t_contact += time.perf_counter() - t1
         dx_c = nice_step(max(dx_target, CIRCUMFERENCE_STEP_M))  # orders up to ~500 need no finer grid
         x_nom = _grid(track, offset, dx_c)
         prof_nom = tis[(w, primary)].sample(t_of(x_nom))
@@ -1087,10 +1088,11 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
     timings["contact_load"] = t_contact
     for e in lifted:
         log.warning("%s: %s", run.source, e.describe())
-    steps.append(f"contact: the estimated dynamic contact force against the static wheel load "
-                 f"{cfg.contact.wheel_load_N / 1e3:.1f} kN: " + (
-                     f"the wheel leaves the rail on {len(lifted)} stretch(es) (contact_loss findings)" if lifted
-                     else "the wheels stay on the rails"))
+    if cfg.contact_loss_check:
+        steps.append(f"contact: the estimated dynamic contact force against the static wheel load "
+                     f"{cfg.contact.wheel_load_N / 1e3:.1f} kN: " + (
+                         f"the wheel leaves the rail on {len(lifted)} stretch(es) (contact_loss findings)" if lifted
+                         else "the wheels stay on the rails"))
     steps.append("time -> chainage at " + ", ".join(f"wheelset {w}: dx {1e3 * d:.2f} mm, circumference "
                                                      f"{circ[w].circumference_m:.4f} m" for w, d in dx_used.items())
                  + f"; nominal wheel radius {r_nom:.4f} m; shortest resolved wavelength {1e3 * lam_min:.1f} mm")

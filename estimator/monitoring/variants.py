@@ -98,7 +98,8 @@ class Variant:
 
 
 def _variant_config(fm, cfg: MonitoringConfig):
-    return fm.config.replace(models=(cfg.model,))
+    # a variant is read for its band levels only: its contact-loss check would cost as much as its own inversion
+    return fm.config.replace(models=(cfg.model,), contact_loss_check=False)
 
 
 def perturbed_variants(field_model, cfg: MonitoringConfig = MonitoringConfig()) -> list[Variant]:
