@@ -32,7 +32,8 @@ def _progress(quiet: bool):
 def summarise_estimate(est, files: dict | None = None) -> list[str]:
     """Lines the command prints about an estimate."""
     lines = [f"run {est.run_id}: {est.duration_s:.1f} s, {est.direction} (wheelset {est.leading} leading), masked "
-             f"{100 * est.masked_share.get('run', 0.0):.1f} %, {len(est.qc)} quality-control finding(s)",
+             f"{100 * est.masked_share.get('run', 0.0):.1f} % in any channel, {len(est.qc)} quality-control "
+             f"finding(s)",
              f"wheelbase {est.wheelbase_m:.3f} m ({est.wheelbase_source}); inversion band {est.band_hz[0]:g}-"
              f"{est.band_hz[1]:g} Hz; shortest resolved wavelength {1e3 * est.lambda_min_m:.1f} mm"]
     for s in est.skipped:
