@@ -81,16 +81,7 @@ def contact_loss_events(force: TimeIrregularity, t: np.ndarray, chainage: np.nda
     for k, side in enumerate(force.sides):
         with np.errstate(invalid="ignore"):
             lost = F[k] < -wheel_load_n
-        if not lost.any():
-            continue
-        spans = runs_of(lost)
-        merged = [list(spans[0])]
-        for a, b in spans[1:]:
-            if a - merged[-1][1] <= gap:
-                merged[-1][1] = b
-            else:
-                merged.append([a, b])
-        for a, b in merged:
+        for a, b in runs_of(lost, max_gap=gap):
             low = float(np.nanmin(F[k, a:b])) / wheel_load_n
             x0, x1 = sorted((float(chainage[a]), float(chainage[b - 1])))
             out.append(QCEvent(

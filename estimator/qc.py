@@ -66,14 +66,18 @@ ACC_RMS_MAX_MS2 = ACC_RMS_MAX_G * G0
 ACC_GLITCH_MAX_SHARE = 0.01
 
 
-def runs_of(flag: np.ndarray) -> list[tuple[int, int]]:
-    """Half-open index ranges ``[i, j)`` where ``flag`` is True."""
+def runs_of(flag: np.ndarray, max_gap: int = 0) -> list[tuple[int, int]]:
+    """Half-open index ranges ``[i, j)`` where ``flag`` is True; runs separated by at most ``max_gap`` False
+    samples are one (an event that flickers)."""
     f = np.asarray(flag, bool)
     if not f.any():
         return []
     d = np.diff(np.concatenate([[0], f.view(np.int8), [0]]))
     starts = np.flatnonzero(d == 1)
     ends = np.flatnonzero(d == -1)
+    if max_gap > 0:
+        keep = np.concatenate([[True], starts[1:] - ends[:-1] > max_gap])
+        starts, ends = starts[keep], ends[np.concatenate([keep[1:], [True]])]
     return list(zip(starts.tolist(), ends.tolist()))
 
 
