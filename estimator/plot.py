@@ -161,8 +161,12 @@ def plot_mask_map(estimate, ax=None):
     if xs:
         ax.set_xlim(min(x[0] for x in xs), max(x[-1] for x in xs))
     kinds = sorted(set(qc["kind"])) if not qc.empty else []
-    ax.legend(handles=[Patch(color=_KIND_COLOURS.get(k, "tab:blue"), label=k) for k in kinds], fontsize=8,
-              loc="upper right")
+    if kinds:
+        ax.legend(handles=[Patch(color=_KIND_COLOURS.get(k, "tab:blue"), label=k) for k in kinds], fontsize=8,
+                  loc="upper right")
+    else:
+        ax.text(0.5, 0.5, "nothing masked or flagged", transform=ax.transAxes, ha="center", va="center",
+                color="0.4")
     share = 100 * estimate.masked_share.get("run", 0.0)
     ax.set_title(f"{estimate.run_id}: masked spans (run masked share {share:.1f} %)")
     ax.set_xlabel("chainage [m]")

@@ -1,6 +1,8 @@
 """The field report: one self-contained HTML page an analyst reads top to bottom (figures embedded as PNG).
 
-Sections:
+It opens with an "In short" box: the run in one sentence and the findings the command prints
+(:func:`estimator.findings.headline`: corrugated rails per band with the trailing wheelset's word and the
+likely mechanism, contact loss, wheelsets not estimated). Sections:
 
 1. the run — header, direction, leading wheelset, duration, speeds;
 2. quality control — masked share per channel, every finding, the mask map;
@@ -21,6 +23,7 @@ Sections:
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 from typing import Mapping
 
@@ -50,7 +53,7 @@ def write_report(estimate, path, *, figures: Mapping[str, Path] | None = None,
     its level, no overlap with the run, no rail compared), shown in section 6."""
     fig = dict(figures or {})
     e = estimate
-    parts = [f"<h1>Rail roughness from axlebox accelerations — run {_e(e.run_id)}</h1>"]
+    parts = [f"<h1>Rail roughness from axlebox accelerations — run {_e(e.run_id)}</h1>", _summary_box(e)]
     # 1
     speeds = [p.speed_m_s for p in e.profiles.values()]
     v = np.concatenate(speeds) if speeds else np.zeros(0)
@@ -118,9 +121,9 @@ def write_report(estimate, path, *, figures: Mapping[str, Path] | None = None,
               _table(pd.concat(cond, ignore_index=True) if cond else pd.DataFrame(), 80)]
     # 5
     parts.append(f"<h2>{SECTION_TITLES[4]}</h2>")
-    for k in sorted(f for f in fig if f.startswith("band_")):
-        parts.append(_figure(fig[k], f"EN 13231-3 peak-to-peak ({k[5:].replace('_', '–')} mm) along chainage per "
-                                     "rail, the three models (thesis Fig. 4.9 style); dashed: the reference."))
+    for k, (band, stretch) in _band_figures(fig):
+        parts.append(_figure(fig[k], f"EN 13231-3 peak-to-peak, {band} mm, {stretch}, along chainage per rail, the "
+                                     "three models (thesis Fig. 4.9 style); dashed: the reference."))
     ix = e.indexes
     if not ix.empty:
         ix = ix[(ix["wheelset"] == e.leading) & (ix["band_mm"].isin(["30-100", "100-300"]))]
@@ -155,9 +158,9 @@ def write_report(estimate, path, *, figures: Mapping[str, Path] | None = None,
                      + "<br>".join(_e(c) for c in cautions) + "</div>")
     # 7
     parts.append(f"<h2>{SECTION_TITLES[6]}</h2>")
-    for k in sorted(f for f in fig if f.startswith("spectra_")):
-        parts.append(_figure(fig[k], f"EN 15610 one-third-octave roughness level, {k[8:]}, with the ISO 3095 limit "
-                                     "(bands the run resolves only)."))
+    for k in (f for f in fig if f.startswith("spectra_")):
+        parts.append(_figure(fig[k], f"EN 15610 one-third-octave roughness level, {k[8:].replace('_', ' ')}, with "
+                                     "the ISO 3095 limit (bands the run resolves only)."))
     if spectra_comparison is not None and not spectra_comparison.empty:
         parts.append(_table(spectra_comparison.dropna(subset=["error_db"]), 80))
     # 8
@@ -189,6 +192,37 @@ def write_report(estimate, path, *, figures: Mapping[str, Path] | None = None,
               "<pre>" + _e(json.dumps({k: round(v, 4) for k, v in e.timings_s.items()})) + "</pre>"]
     out = Path(path)
     out.write_text(page(f"Field estimate {e.run_id}", parts), encoding="utf-8")
+    return out
+
+
+def _summary_box(e) -> str:
+    """The report's opening box: the run in one sentence, then :func:`estimator.findings.headline`, the same
+    findings the command prints; red where a rail is corrugated, a wheel leaves the rail or a wheelset is missing."""
+    from estimator.findings import headline
+
+    found = headline(e)
+    alarming = any(f.startswith(("corrugated:", "contact loss:", "not estimated:")) for f in found)
+    run = (f"Run {_e(e.run_id)}: {e.duration_s:.1f} s travelling {_e(e.direction)}, wheelset {e.leading} leading; "
+           f"{100 * e.masked_share.get('run', 0.0):.1f} % of the samples masked in some channel "
+           f"({len(e.qc)} quality-control finding(s), section 2); shortest wavelength resolved "
+           f"{1e3 * e.lambda_min_m:.1f} mm.")
+    cautions = _band_cautions(e)
+    care = (f"<p>{len(cautions)} band(s) to read with care (contact filter or pinned–pinned resonance): "
+            "section 6.</p>") if cautions else ""
+    items = "".join(f"<li>{_e(f)}</li>" for f in found)
+    return (f"<div class='box{' warn' if alarming else ''}'><p><b>In short.</b> {run}</p><ul>{items}</ul>{care}"
+            "</div>")
+
+
+def _band_figures(fig: Mapping[str, Path]) -> list[tuple[str, tuple[str, str]]]:
+    """The band figures :func:`estimator.export.write_estimate` names ``band_<short>_<long>_<stretch>``, with the
+    band (``30–100``) and the stretch (``curve C1``) their names hold, in the order written (stretch by stretch,
+    the shorter band first)."""
+    out = []
+    for k in fig:
+        m = re.fullmatch(r"band_([0-9.]+)_([0-9.]+)_(.+)", k)
+        if m:
+            out.append((k, (f"{m[1]}–{m[2]}", m[3].replace("_", " "))))
     return out
 
 

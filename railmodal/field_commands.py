@@ -30,39 +30,16 @@ def _progress(quiet: bool):
 
 
 def summarise_estimate(est, files: dict | None = None) -> list[str]:
-    """Lines the command prints about an estimate."""
+    """Lines the command prints about an estimate: the run, then its findings (:func:`estimator.findings.headline`,
+    which the report's "In short" box shows too)."""
+    from estimator.findings import headline
+
     lines = [f"run {est.run_id}: {est.duration_s:.1f} s, {est.direction} (wheelset {est.leading} leading), masked "
              f"{100 * est.masked_share.get('run', 0.0):.1f} % in any channel, {len(est.qc)} quality-control "
              f"finding(s)",
              f"wheelbase {est.wheelbase_m:.3f} m ({est.wheelbase_source}); inversion band {est.band_hz[0]:g}-"
              f"{est.band_hz[1]:g} Hz; shortest resolved wavelength {1e3 * est.lambda_min_m:.1f} mm"]
-    for s in est.skipped:
-        lines.append(f"not estimated: {s}")
-    lifted = est.qc[est.qc["kind"] == "contact_loss"] if not est.qc.empty else est.qc
-    if len(lifted):
-        lines.append(f"contact loss: the wheel leaves the rail on {len(lifted)} stretch(es), "
-                     f"{', '.join(sorted(set(lifted['channel'])))} (the estimate there is not the rail's; qc.csv)")
-    c = est.corrugation
-    if not c.empty:
-        from estimator.corrugation import wheelset_agreement
-
-        model = est.models[-1] if est.models else ""
-        # one line per rail and band: the stretch whose spectral peak stands out most (the rest: corrugation.csv)
-        best = wheelset_agreement(c, model)
-        for r in best.itertuples():
-            second = (f"trailing wheelset {r.trailing_pk_pk_um:.1f} um" if r.agree else
-                      "NOT above the threshold on the trailing wheelset: the two estimates disagree"
-                      + (f"; {r.note}" if r.note else ""))
-            lines.append(f"corrugated: {r.stretch}, rail {r.rail}, {r.band_mm} mm: {r.median_pk_pk_um:.1f} um pk-pk "
-                         f"({second}), lambda {r.dominant_wavelength_mm:.0f} mm at {r.speed_m_s:.1f} m/s = "
-                         f"{r.frequency_hz:.0f} Hz -> {r.mechanism}")
-        lead = c[(c["role"] == "leading") & (c["model"] == model)]
-        rest = len(lead) - len(best)
-        if rest:
-            lines.append(f"{rest} more stretch(es) above the EN 13231-3 thresholds (broadband or repeated): "
-                         "corrugation.csv")
-    else:
-        lines.append("no stretch above the EN 13231-3 thresholds in 30-100 or 100-300 mm")
+    lines += headline(est, plain=True)
     if files and "report" in files:
         lines.append(f"report: {files['report']}")
     return lines

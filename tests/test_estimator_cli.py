@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import json
+import math
+import re
+from html import escape
 
 import pandas as pd
 import pytest
@@ -46,6 +49,22 @@ def test_field_estimate_writes_profiles_tables_figures_and_the_report(inputs, ca
     for title in SECTION_TITLES:
         assert title in html
     assert html.count("data:image/png;base64") >= 4
+    # the report opens with the findings the console printed, the same sentences (µm where the console says um)
+    box = html[html.index("<b>In short.</b>"):html.index(SECTION_TITLES[0])]
+    found = [ln for ln in text.out.splitlines() if ln.startswith(("corrugated:", "no stretch above"))]
+    assert found and all(escape(ln.replace(" um", " µm").replace("lambda", "λ").replace("->", "→")) in box
+                         for ln in found)
+    # and they are the synthetic line's corrugations: 60 mm on rail L (40 µm pk-pk), 180 mm on rail R (30 µm);
+    # the level within 2 dB (the median over stretches that include the patches' 5 m tapers reads low)
+    said = {(m[1], m[2]): (float(m[3]), float(m[4])) for m in (re.search(
+        r"rail (\w), (\d+-\d+) mm: ([0-9.]+) µm pk-pk .*λ ([0-9.]+) mm", item) for item in re.findall(
+        r"<li>(corrugated:.*?)</li>", box)) if m}
+    assert set(said) == {("L", "30-100"), ("R", "100-300")}
+    for key, (pk_um, lam_mm) in {("L", "30-100"): (40.0, 60.0), ("R", "100-300"): (30.0, 180.0)}.items():
+        assert abs(20 * math.log10(said[key][0] / pk_um)) < 2.0 and abs(said[key][1] / lam_mm - 1) < 0.05, key
+    # each band figure says its band and stretch in words, shorter band first
+    caps = re.findall(r"<figcaption>EN 13231-3 peak-to-peak, ([0-9]+–[0-9]+) mm, ([^,]+),", html)
+    assert [c[0] for c in caps][:2] == ["30–100", "100–300"] and all("_" not in c[1] for c in caps)
     cmp = pd.read_csv(out / "comparison.csv")
     vl = cmp[(cmp["model"] == "vertical_lateral") & (cmp["role"] == "leading")
              & cmp["band_mm"].isin(["30-100", "100-300"])].dropna(subset=["mean_error_db"])
