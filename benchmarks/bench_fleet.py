@@ -127,7 +127,7 @@ def main(argv=None) -> int:
     times = {}
     outs = {}
     for n in (1, 2):
-        with DaskExecutor(workers=n, memory_limit="2GiB") as ex:
+        with DaskExecutor(workers=n) as ex:
             _warm(ex, paths[0], spec, ref)
             times[n], outs[n] = _timed_batch(ex, paths, spec, ref)
     # equality with the local path

@@ -71,6 +71,7 @@ from estimator.inversion import (TimeIrregularity, check_sensor_mounting, check_
 from estimator.io import LineDescription, read_line, read_run
 from estimator.io.sensors import check_sensors, read_sensors
 from estimator.lead_trail import MIN_CORRELATION, LeadTrail, arrangement_findings, lead_trail
+from estimator.memo import Memo
 from estimator.orientation import Orientation, orientation
 from estimator.qc import check_run, glitches
 from estimator.results import FieldEstimate, ProfileEstimate
@@ -115,8 +116,9 @@ class FieldModel:
     """A wheelset model prepared for field estimates with one sensor table, line and set of options.
 
     Transfer functions are computed on first use for each (model, wheelset,
-    trackform, contact angles) and memoised in ``cache`` (a dictionary the
-    object owns), so that many runs share them. ``provenance``: where the
+    trackform, contact angles) and memoised in ``cache`` (a :class:`~estimator.memo.Memo`
+    the object owns, in the process's store bounded in bytes; a dictionary given
+    is taken as its first entries), so that many runs share them. ``provenance``: where the
     model's settings came from beyond the files it was prepared from (a field
     calibration), recorded first in every estimate's processing history.
     """
@@ -130,9 +132,11 @@ class FieldModel:
     semi_axis_m: float
     curving: CurvingModel = CurvingModel()
     provenance: tuple[str, ...] = ()
-    cache: dict = field(default_factory=dict, repr=False)
+    cache: Memo = field(default_factory=Memo, repr=False)
 
     def __post_init__(self):
+        if not isinstance(self.cache, Memo):
+            object.__setattr__(self, "cache", Memo(self.cache))
         # a calibration's angles are keyed by curve id: an id the line lacks (another line's calibration, a renamed
         # curve) would otherwise be carried in the provenance as if it applied, while nothing uses it
         wanted = sorted((self.config.curve_contact_angles or {}).keys())

@@ -267,7 +267,7 @@ def _common_processing(p) -> None:
     p.add_argument("--scheduler", default=None, help="address of an existing Dask scheduler (tcp://host:8786)")
     p.add_argument("--workers", default=2, type=bounded_int("--workers", 1, 256),
                    help="worker processes of the local Dask cluster (default 2)")
-    p.add_argument("--memory-limit", default="2GiB", help="memory limit per local Dask worker (default 2GiB)")
+    p.add_argument("--memory-limit", default="4GiB", help="memory limit per local Dask worker (default 4GiB)")
 
 
 def add_monitor_commands(sub) -> None:

@@ -1,0 +1,201 @@
+"""The transfer functions a process's field models memoise, in one store bounded in bytes.
+
+A :class:`~estimator.workflow.FieldModel` memoises what it derives from its wheelset model (track receptances,
+transfer functions per kind and contact angles, rail couplings per wheelset distance), so that a batch's runs
+share them. Some keys are the run's own: the contact angles of a curve follow the run's speed, the rail coupling
+the wheelbase the run measured. An unbounded memo then grows with every run: on the virtual line's 5-day
+campaign a worker's 52 uncertainty variants held 845 MB of transfer functions after the first run and 1138 MB
+after ten (1040 → 1936 entries), until Dask paused the worker at 80 % of its memory limit and the batch stood
+still. Here every field model's memo is a view (:class:`Memo`) onto one store per process that evicts the
+least recently used entries once their arrays exceed a byte budget: entries a run keeps using stay, a finished
+run's are the first to go, and a value recomputed after eviction is the same (each depends on its key alone).
+
+The budget is the environment variable ``RAILMODAL_MEMO_MB`` when it is set, else :data:`DEFAULT_BUDGET_BYTES`;
+inside a Dask worker at most :data:`WORKER_SHARE` of the worker's memory limit, so that the memo alone never
+takes a worker to the 80 % at which Dask pauses it (a paused worker whose memory does not fall runs nothing
+again). It is read when the store is first used, in each process.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import os
+import threading
+from collections import OrderedDict
+from collections.abc import MutableMapping
+from typing import Any, Hashable, Iterator
+
+import numpy as np
+
+__all__ = ["Memo", "DEFAULT_BUDGET_BYTES", "WORKER_SHARE", "store_stats", "set_budget"]
+
+#: 1 GiB: what one uncertainty run of the monitoring computes (52 variants, 863 MB on the virtual line's curve)
+#: stays for the next day's run. With 384 MiB every variant was evicted before its next use (LRU over a cycle
+#: longer than the store) and ingesting that campaign took 210 s instead of 112 s.
+DEFAULT_BUDGET_BYTES = 2**30
+#: the largest share of a Dask worker's memory limit the memo may take (the run being estimated needs the rest)
+WORKER_SHARE = 0.35
+
+
+def nbytes(value: Any, _depth: int = 0) -> int:
+    """Bytes of the NumPy arrays a memoised value holds (in containers and dataclasses, a few levels deep)."""
+    if isinstance(value, np.ndarray):
+        return int(value.nbytes)
+    if _depth > 3:
+        return 0
+    if isinstance(value, (list, tuple)):
+        return sum(nbytes(v, _depth + 1) for v in value)
+    if isinstance(value, dict):
+        return sum(nbytes(v, _depth + 1) for v in value.values())
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return sum(nbytes(getattr(value, f.name), _depth + 1) for f in dataclasses.fields(value))
+    data = getattr(value, "data", None)  # receptance's frequency-response type
+    return int(data.nbytes) if isinstance(data, np.ndarray) else 0
+
+
+class _Store:
+    """Entries ``(namespace, key) -> (value, bytes)`` in least-recently-used order, within ``budget`` bytes."""
+
+    def __init__(self, budget: int) -> None:
+        self.budget = int(budget)
+        self.entries: OrderedDict[tuple[int, Hashable], tuple[Any, int]] = OrderedDict()
+        self.bytes = 0
+        self.evicted = 0
+        self.lock = threading.Lock()
+
+    def get(self, full_key):
+        with self.lock:
+            value, _ = self.entries[full_key]
+            self.entries.move_to_end(full_key)
+            return value
+
+    def put(self, full_key, value) -> None:
+        size = nbytes(value)
+        with self.lock:
+            old = self.entries.pop(full_key, None)
+            if old is not None:
+                self.bytes -= old[1]
+            self.entries[full_key] = (value, size)
+            self.bytes += size
+            # the newest entry always stays, even alone above the budget: it is about to be used
+            while self.bytes > self.budget and len(self.entries) > 1:
+                _, (_, s) = self.entries.popitem(last=False)
+                self.bytes -= s
+                self.evicted += 1
+
+    def delete(self, full_key) -> None:
+        with self.lock:
+            _, s = self.entries.pop(full_key)
+            self.bytes -= s
+
+
+_STORE: _Store | None = None
+_NAMESPACES = itertools.count()
+
+
+def _store() -> _Store:
+    global _STORE
+    if _STORE is None:
+        mb = os.environ.get("RAILMODAL_MEMO_MB")
+        try:
+            budget = int(float(mb) * 2**20) if mb else DEFAULT_BUDGET_BYTES
+        except ValueError:
+            raise ValueError(f"RAILMODAL_MEMO_MB must be a number of megabytes, got {mb!r}") from None
+        limit = _worker_memory_limit()
+        if limit:
+            budget = min(budget, int(WORKER_SHARE * limit))
+        _STORE = _Store(max(budget, 0))
+    return _STORE
+
+
+def _worker_memory_limit() -> int | None:
+    """The memory limit [bytes] of the Dask worker this code runs in, None outside one (or without a limit)."""
+    try:
+        from distributed import get_worker
+
+        limit = get_worker().memory_manager.memory_limit
+    except (ImportError, ValueError, AttributeError):
+        return None
+    return int(limit) if limit else None
+
+
+def set_budget(n_bytes: int) -> None:
+    """Set this process's memo budget [bytes], evicting at once what lies beyond it."""
+    s = _store()
+    with s.lock:
+        s.budget = int(n_bytes)
+        while s.bytes > s.budget and len(s.entries) > 1:
+            _, (_, b) = s.entries.popitem(last=False)
+            s.bytes -= b
+            s.evicted += 1
+
+
+def store_stats() -> dict:
+    """``entries``, ``bytes``, ``budget`` and ``evicted`` (entries evicted so far) of this process's store."""
+    s = _store()
+    return {"entries": len(s.entries), "bytes": s.bytes, "budget": s.budget, "evicted": s.evicted}
+
+
+class Memo(MutableMapping):
+    """One field model's memo: a dictionary whose entries live in the process's bounded store.
+
+    Parameters
+    ----------
+    initial : mapping, optional
+        Entries to start with.
+
+    Notes
+    -----
+    ``key in memo`` followed by ``memo[key]`` is the usage pattern; an entry evicted between the two raises
+    ``KeyError`` as a dictionary would, so callers read the value once (``memo.get`` or the value they stored).
+    Pickling a memo (a field model sent to a Dask worker) sends no entries: the worker computes its own.
+    """
+
+    def __init__(self, initial=None) -> None:
+        self._ns = next(_NAMESPACES)
+        self._keys: set = set()
+        for k, v in dict(initial or {}).items():
+            self[k] = v
+
+    def _full(self, key):
+        return (self._ns, key)
+
+    def __getitem__(self, key):
+        try:
+            return _store().get(self._full(key))
+        except KeyError:
+            self._keys.discard(key)
+            raise KeyError(key) from None
+
+    def __setitem__(self, key, value) -> None:
+        _store().put(self._full(key), value)
+        self._keys.add(key)
+
+    def __delitem__(self, key) -> None:
+        self._keys.discard(key)
+        try:
+            _store().delete(self._full(key))
+        except KeyError:
+            raise KeyError(key) from None
+
+    def __contains__(self, key) -> bool:
+        if key not in self._keys:
+            return False
+        if self._full(key) in _store().entries:
+            return True
+        self._keys.discard(key)
+        return False
+
+    def __iter__(self) -> Iterator:
+        entries = _store().entries
+        return iter([k for k in list(self._keys) if self._full(k) in entries])
+
+    def __len__(self) -> int:
+        return sum(1 for _ in self)
+
+    def __reduce__(self):
+        return (Memo, ())
+
+    def __repr__(self) -> str:
+        return f"Memo({len(self)} entries)"
