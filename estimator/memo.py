@@ -60,9 +60,28 @@ class _Store:
     def __init__(self, budget: int) -> None:
         self.budget = int(budget)
         self.entries: OrderedDict[tuple[int, Hashable], tuple[Any, int]] = OrderedDict()
+        #: each namespace's live keys (a memo lists its own without scanning the store)
+        self.keys: dict[int, set] = {}
         self.bytes = 0
         self.evicted = 0
         self.lock = threading.Lock()
+
+    def _drop(self, full_key, size: int) -> None:
+        self.bytes -= size
+        ns, key = full_key
+        live = self.keys.get(ns)
+        if live is not None:
+            live.discard(key)
+            if not live:
+                del self.keys[ns]
+
+    def evict_beyond(self, budget: int) -> None:
+        """Drop the least recently used entries until they fit ``budget``; the newest always stays (it is about to
+        be used). Call with the lock held."""
+        while self.bytes > budget and len(self.entries) > 1:
+            full_key, (_, size) = self.entries.popitem(last=False)
+            self._drop(full_key, size)
+            self.evicted += 1
 
     def get(self, full_key):
         with self.lock:
@@ -77,17 +96,14 @@ class _Store:
             if old is not None:
                 self.bytes -= old[1]
             self.entries[full_key] = (value, size)
+            self.keys.setdefault(full_key[0], set()).add(full_key[1])
             self.bytes += size
-            # the newest entry always stays, even alone above the budget: it is about to be used
-            while self.bytes > self.budget and len(self.entries) > 1:
-                _, (_, s) = self.entries.popitem(last=False)
-                self.bytes -= s
-                self.evicted += 1
+            self.evict_beyond(self.budget)
 
     def delete(self, full_key) -> None:
         with self.lock:
-            _, s = self.entries.pop(full_key)
-            self.bytes -= s
+            _, size = self.entries.pop(full_key)
+            self._drop(full_key, size)
 
 
 _STORE: _Store | None = None
@@ -125,10 +141,7 @@ def set_budget(n_bytes: int) -> None:
     s = _store()
     with s.lock:
         s.budget = int(n_bytes)
-        while s.bytes > s.budget and len(s.entries) > 1:
-            _, (_, b) = s.entries.popitem(last=False)
-            s.bytes -= b
-            s.evicted += 1
+        s.evict_beyond(s.budget)
 
 
 def store_stats() -> dict:
@@ -147,14 +160,13 @@ class Memo(MutableMapping):
 
     Notes
     -----
-    ``key in memo`` followed by ``memo[key]`` is the usage pattern; an entry evicted between the two raises
-    ``KeyError`` as a dictionary would, so callers read the value once (``memo.get`` or the value they stored).
-    Pickling a memo (a field model sent to a Dask worker) sends no entries: the worker computes its own.
+    An entry can only go when another one is put (the newest always stays), so ``if key not in memo: memo[key] =
+    f()`` followed by ``return memo[key]`` is safe; a value needed across later puts is held by reference. A memo
+    pickled (a field model sent to a Dask worker) sends no entries: the worker computes its own.
     """
 
     def __init__(self, initial=None) -> None:
         self._ns = next(_NAMESPACES)
-        self._keys: set = set()
         for k, v in dict(initial or {}).items():
             self[k] = v
 
@@ -165,34 +177,25 @@ class Memo(MutableMapping):
         try:
             return _store().get(self._full(key))
         except KeyError:
-            self._keys.discard(key)
             raise KeyError(key) from None
 
     def __setitem__(self, key, value) -> None:
         _store().put(self._full(key), value)
-        self._keys.add(key)
 
     def __delitem__(self, key) -> None:
-        self._keys.discard(key)
         try:
             _store().delete(self._full(key))
         except KeyError:
             raise KeyError(key) from None
 
     def __contains__(self, key) -> bool:
-        if key not in self._keys:
-            return False
-        if self._full(key) in _store().entries:
-            return True
-        self._keys.discard(key)
-        return False
+        return self._full(key) in _store().entries
 
     def __iter__(self) -> Iterator:
-        entries = _store().entries
-        return iter([k for k in list(self._keys) if self._full(k) in entries])
+        return iter(list(_store().keys.get(self._ns, ())))
 
     def __len__(self) -> int:
-        return sum(1 for _ in self)
+        return len(_store().keys.get(self._ns, ()))
 
     def __reduce__(self):
         return (Memo, ())

@@ -40,6 +40,9 @@ def test_entries_beyond_the_budget_go_least_recently_used_first(budget):
     assert store_stats()["bytes"] <= 10 * 8000
     m["big"] = np.zeros(100_000)  # alone above the budget: kept (it is about to be used), everything else goes
     assert "big" in m and len(m) == 1 and m["big"].size == 100_000
+    # the keys evicted are forgotten too: a long batch's per-run keys do not pile up beside the store
+    store = memo_mod._store()
+    assert sum(len(k) for k in store.keys.values()) == len(store.entries)
     with pytest.raises(KeyError):
         _ = m[0]
 
