@@ -44,7 +44,9 @@ only the speed differs. The workers still hold memory within their
 
 **Failures** of one run (an unreadable file, a run that cannot be aligned, a
 worker lost) come back as that run's failure — with the reason — and the
-batch goes on.
+batch goes on. A batch whose workers all stay paused at 80 % of their memory
+limit (Dask runs nothing on a paused worker) fails its remaining runs after
+``stall_timeout_s`` (10 min) with that reason, instead of standing still.
 
 **Same results.** Both executors call the same function with the same
 arguments and hold BLAS to one thread inside each task (threadpoolctl), so a
@@ -55,6 +57,7 @@ bit for bit).
 from __future__ import annotations
 
 import logging
+import time
 import traceback
 from typing import Any, Callable, Iterator, Sequence
 
@@ -110,12 +113,17 @@ class DaskExecutor:
     memory_limit : str or int
         Memory limit per worker of the local cluster (Dask's syntax, e.g. ``"4GiB"``). A worker's transfer-function
         memo takes at most :data:`estimator.memo.WORKER_SHARE` of it.
+    stall_timeout_s : float
+        How long every worker may stay paused (memory) with nothing completing before the runs left fail.
     """
 
     name = "dask"
 
-    def __init__(self, scheduler: str | None = None, *, workers: int = 2, memory_limit="4GiB") -> None:
+    def __init__(self, scheduler: str | None = None, *, workers: int = 2, memory_limit="4GiB",
+                 stall_timeout_s: float = 600.0) -> None:
         from distributed import Client, LocalCluster
+
+        self.stall_timeout_s = float(stall_timeout_s)
 
         # the scheduler's and workers' own INFO chatter is not the user's business (warnings still show)
         for name in ("distributed", "dask"):
@@ -168,19 +176,44 @@ class DaskExecutor:
             return obj
 
     def run(self, fn: Callable, calls: Sequence[tuple[tuple, dict]]) -> Iterator[tuple[int, Any]]:
-        """Submit every call and yield ``(index, result)`` as they complete (a lost task yields its error)."""
-        from distributed import as_completed
+        """Submit every call and yield ``(index, result)`` as they complete (a lost task yields its error).
+
+        A worker paused at 80 % of its memory limit takes no task until its memory falls, which it may never do:
+        when every worker has been paused for :attr:`stall_timeout_s` with nothing completing, the calls left
+        fail with that reason instead of the batch standing still."""
+        from distributed import wait
 
         futures = {self.client.submit(call_isolated, fn, *args, pure=False, **kwargs): i
                    for i, (args, kwargs) in enumerate(calls)}
-        for fut in as_completed(list(futures)):
-            i = futures[fut]
+        pending, paused_since = set(futures), None
+        while pending:
             try:
-                res = fut.result()
-            except Exception as exc:  # noqa: BLE001 - a worker lost or killed (memory limit): that run fails
-                res = ("error", f"{type(exc).__name__}: {exc}")
-            fut.release()
-            yield i, res
+                done, pending = wait(pending, timeout=min(5.0, self.stall_timeout_s), return_when="FIRST_COMPLETED")
+            except TimeoutError:
+                done = set()
+            for fut in done:
+                try:
+                    res = fut.result()
+                except Exception as exc:  # noqa: BLE001 - a worker lost or killed (memory limit): that run fails
+                    res = ("error", f"{type(exc).__name__}: {exc}")
+                fut.release()
+                yield futures[fut], res
+            paused = self._all_paused()
+            paused_since = None if done or not paused else (paused_since or time.monotonic())
+            if paused_since is not None and time.monotonic() - paused_since >= self.stall_timeout_s:
+                limits = sorted({w.get("memory_limit") for w in self.client.scheduler_info()["workers"].values()})
+                why = (f"every Dask worker has been paused at 80 % of its memory limit ({', '.join(map(str, limits))} "
+                       f"bytes) for {self.stall_timeout_s:g} s with nothing completing: give the workers more memory "
+                       "(--memory-limit) or fewer at a time")
+                log.error("%s; %d run(s) not processed", why, len(pending))
+                for fut in pending:
+                    fut.cancel()
+                    yield futures[fut], ("error", why)
+                return
+
+    def _all_paused(self) -> bool:
+        workers = self.client.scheduler_info().get("workers", {}).values()
+        return bool(workers) and all(w.get("status") == "paused" for w in workers)
 
     def describe(self) -> str:
         info = self.client.scheduler_info()

@@ -74,6 +74,23 @@ def test_dask_batch_equals_the_local_path_and_reports_a_failed_run(batch):
     assert np.isfinite(w["pk_pk_um"]).all()
 
 
+def _set_status(ex, status):
+    """Every worker of ``ex`` to ``status`` (Dask's memory monitor off, so that it does not resume a worker whose
+    memory is low), once the scheduler says so."""
+    def set_it(dask_worker, name=status.name):
+        from distributed.core import Status
+
+        dask_worker.memory_manager.memory_pause_fraction = False
+        dask_worker.status = Status[name]
+
+    ex.client.run(set_it)
+    for _ in range(200):
+        if all(w["status"] == status.name for w in ex.client.scheduler_info()["workers"].values()):
+            return
+        time.sleep(0.05)
+    raise AssertionError(f"the workers did not report {status.name}")
+
+
 def test_the_days_reference_reaches_the_tasks_when_every_worker_is_paused(caplog):
     """Dask's scheduler refuses a scatter while no worker is running (2 s, then "No valid workers found"): on the
     virtual line's 5-day campaign, with both workers paused at 80 % of their memory limit, the batch ended there
@@ -81,20 +98,30 @@ def test_the_days_reference_reaches_the_tasks_when_every_worker_is_paused(caplog
     from distributed import Future
     from distributed.core import Status
 
-    def set_status(ex, status):
-        ex.client.run(lambda dask_worker: setattr(dask_worker, "status", status))
-        for _ in range(200):
-            if all(w["status"] == status.name for w in ex.client.scheduler_info()["workers"].values()):
-                return
-            time.sleep(0.05)
-        raise AssertionError(f"the workers did not report {status.name}")
-
     ref = np.arange(5.0)  # a day's reference is one object (a dict or a list would be scattered item by item)
     with DaskExecutor(workers=1) as ex:
-        set_status(ex, Status.paused)
+        _set_status(ex, Status.paused)
         with caplog.at_level("WARNING", logger="estimator"):
             shared = ex.share(ref)
         assert shared is ref and "no Dask worker is running now (paused)" in caplog.text
-        set_status(ex, Status.running)
+        _set_status(ex, Status.running)
         shared = ex.share(ref)
         assert isinstance(shared, Future) and np.array_equal(shared.result(), ref)
+
+
+def test_a_batch_whose_workers_stay_paused_fails_its_runs_with_the_reason(caplog):
+    """A worker paused at 80 % of its memory limit never takes the next task if its memory does not fall: the
+    batch used to stand still (the virtual line's 5-day campaign, one worker, before the memo was bounded)."""
+    from distributed.core import Status
+
+    with DaskExecutor(workers=1, stall_timeout_s=1.0) as ex:
+        _set_status(ex, Status.paused)
+        t0 = time.monotonic()
+        with caplog.at_level("ERROR", logger="estimator"):
+            out = dict(ex.run(abs, [((-1,), {}), ((-2,), {})]))
+        assert time.monotonic() - t0 < 30
+        assert sorted(out) == [0, 1] and all(r[0] == "error" and "paused at 80 % of its memory limit" in r[1]
+                                             and "--memory-limit" in r[1] for r in out.values())
+        assert "2 run(s) not processed" in caplog.text
+        _set_status(ex, Status.running)
+        assert dict(ex.run(abs, [((-3,), {})])) == {0: 3}  # running again: the same executor works
