@@ -25,11 +25,12 @@ one task at a time under its ``memory_limit`` (default 4 GiB; Dask's nanny
 restarts a worker that exceeds it and the run is reported as failed); a task
 holds one run (a 1 kHz, 6-channel run of a few minutes is a few tens of MB)
 and its estimate. What a worker keeps between tasks, the memoised transfer
-functions, is bounded too (:mod:`estimator.memo`, at most 35 % of the limit):
+functions, is bounded too (:mod:`estimator.memo`: 1 GiB, at most 35 % of the limit):
 unbounded, it grew with every run until Dask paused the worker at 80 % of a
 2 GiB limit and the batch stood still (measured on the virtual line's 5-day
 campaign: 1.74 GB after three runs, nothing more done). Measured with the
-bound: a worker's memory stays at 1.1–1.9 GB over the same campaign.
+bound: a worker's memory stays at 1.6–2.0 GB over the same campaign, and the
+results are those of the unbounded local path to the bit.
 
 **Allocation.** Dask's nanny starts its workers with
 ``MALLOC_TRIM_THRESHOLD_=65536`` (to hand freed memory back to the system).
@@ -163,10 +164,10 @@ class DaskExecutor:
         """``obj`` sent once to every worker (a broadcast scatter), or ``obj`` itself, which each task then carries,
         when no worker can take it now: Dask refuses a scatter while every worker is paused (memory), and the
         batch must not end on it."""
-        workers = self.client.scheduler_info().get("workers", {}).values()
-        if not any(w.get("status", "running") == "running" for w in workers):
+        status = [w.get("status") for w in self._workers()]
+        if "running" not in status:
             log.warning("no Dask worker is running now (%s): the tasks carry the day's reference themselves",
-                        ", ".join(sorted({str(w.get("status")) for w in workers})) or "none connected")
+                        ", ".join(sorted(set(map(str, status)))) or "none connected")
             return obj
         try:
             return self.client.scatter(obj, broadcast=True)
@@ -198,22 +199,26 @@ class DaskExecutor:
                     res = ("error", f"{type(exc).__name__}: {exc}")
                 fut.release()
                 yield futures[fut], res
-            paused = self._all_paused()
-            paused_since = None if done or not paused else (paused_since or time.monotonic())
-            if paused_since is not None and time.monotonic() - paused_since >= self.stall_timeout_s:
-                limits = sorted({w.get("memory_limit") for w in self.client.scheduler_info()["workers"].values()})
-                why = (f"every Dask worker has been paused at 80 % of its memory limit ({', '.join(map(str, limits))} "
-                       f"bytes) for {self.stall_timeout_s:g} s with nothing completing: give the workers more memory "
-                       "(--memory-limit) or fewer at a time")
-                log.error("%s; %d run(s) not processed", why, len(pending))
-                for fut in pending:
-                    fut.cancel()
-                    yield futures[fut], ("error", why)
-                return
+            workers = [] if done else self._workers()
+            if not workers or any(w.get("status") != "paused" for w in workers):
+                paused_since = None
+                continue
+            paused_since = paused_since or time.monotonic()
+            if time.monotonic() - paused_since < self.stall_timeout_s:
+                continue
+            limits = ", ".join(map(str, sorted({w.get("memory_limit") for w in workers})))
+            why = (f"every Dask worker has been paused at 80 % of its memory limit ({limits} bytes) for "
+                   f"{self.stall_timeout_s:g} s with nothing completing: give the workers more memory "
+                   "(--memory-limit) or fewer at a time")
+            log.error("%s; %d run(s) not processed", why, len(pending))
+            for fut in pending:
+                fut.cancel()
+                yield futures[fut], ("error", why)
+            return
 
-    def _all_paused(self) -> bool:
-        workers = self.client.scheduler_info().get("workers", {}).values()
-        return bool(workers) and all(w.get("status") == "paused" for w in workers)
+    def _workers(self) -> list[dict]:
+        """The scheduler's record of each worker (``status``: running, paused, ...; ``memory_limit``)."""
+        return list(self.client.scheduler_info().get("workers", {}).values())
 
     def describe(self) -> str:
         info = self.client.scheduler_info()
