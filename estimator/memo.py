@@ -50,7 +50,7 @@ def nbytes(value: Any, _depth: int = 0) -> int:
         return sum(nbytes(v, _depth + 1) for v in value.values())
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
         return sum(nbytes(getattr(value, f.name), _depth + 1) for f in dataclasses.fields(value))
-    data = getattr(value, "data", None)  # receptance's frequency-response type
+    data = getattr(value, "data", None)  # any other object holding its values in `data`
     return int(data.nbytes) if isinstance(data, np.ndarray) else 0
 
 
