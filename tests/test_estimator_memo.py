@@ -83,7 +83,7 @@ def test_a_budget_in_the_environment_is_read_and_a_bad_one_named(monkeypatch):
     monkeypatch.setenv("RAILMODAL_MEMO_MB", "lots")
     with pytest.raises(ValueError, match="RAILMODAL_MEMO_MB.*'lots'"):
         store_stats()
-    monkeypatch.setattr(memo_mod, "_STORE", None)  # the next use builds the store from the default again
+    # monkeypatch puts the process's own store back afterwards
 
 
 @pytest.fixture(scope="module")
