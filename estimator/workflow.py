@@ -111,6 +111,15 @@ CIRCUMFERENCE_STEP_M = 0.005
 MAX_COUPLING_SATURATED_SHARE = 0.10
 
 
+#: What depends on the track alone, shared by every field model of the process: a trackform's receptance
+#: (:func:`receptance.track.track_frf`) and the rail coupling of two wheelsets on it (:func:`rail_coupling`),
+#: keyed by the trackform's values. The monitoring's uncertainty variants of one wheelset model differ in the
+#: wheelset, the sensors or the contact, not the track: each held its own copies before (52 of every trackform's
+#: receptance, and 52 of every coupling per run's wheelbase), which took one uncertainty run past the memo's budget
+#: on the virtual line, so that every variant's transfer functions were evicted before the next run used them.
+TRACK_MEMO = Memo()
+
+
 @dataclass(frozen=True, eq=False)
 class FieldModel:
     """A wheelset model prepared for field estimates with one sensor table, line and set of options.
@@ -118,7 +127,9 @@ class FieldModel:
     Transfer functions are computed on first use for each (model, wheelset,
     trackform, contact angles) and memoised in ``cache`` (a :class:`~estimator.memo.Memo`
     the object owns, in the process's store bounded in bytes; a dictionary given
-    is taken as its first entries), so that many runs share them. ``provenance``: where the
+    is taken as its first entries), so that many runs share them; what depends on the track alone (its
+    receptance, the rail coupling) is memoised once per process for every field model (:data:`TRACK_MEMO`).
+    ``provenance``: where the
     model's settings came from beyond the files it was prepared from (a field
     calibration), recorded first in every estimate's processing history.
     """
@@ -160,14 +171,16 @@ class FieldModel:
     def default_trackform(self) -> Trackform:
         return self.trackform if self.trackform is not None else Trackform()
 
+    def _trackform(self, tf_index: int) -> Trackform:
+        return self.default_trackform() if tf_index < 0 else self.trackforms()[tf_index][2]
+
     def _track(self, tf_index: int, fs: float):
-        key = ("track", tf_index, fs)
-        if key not in self.cache:
-            df = self.config.transfer_df_hz
+        tf, df, supports = self._trackform(tf_index), self.config.transfer_df_hz, self.config.trackform_supports
+        key = ("track", tf, supports, df, fs)  # the track's values, not its index: shared across field models
+        if key not in TRACK_MEMO:
             f = df * np.arange(1, int(np.floor(0.5 * fs / df)) + 1)
-            tf = self.default_trackform() if tf_index < 0 else self.trackforms()[tf_index][2]
-            self.cache[key] = track_frf(f, tf, supports=self.config.trackform_supports)
-        return self.cache[key]
+            TRACK_MEMO[key] = track_frf(f, tf, supports=supports)
+        return TRACK_MEMO[key]
 
     def transfer(self, kind: str, channels: pd.DataFrame, fs: float, tf_index: int, theta: tuple[float, float]):
         """Memoised :func:`estimator.inversion.wheelset_transfer`."""
@@ -186,17 +199,17 @@ class FieldModel:
         # the distance is computed at the key's 0.1 mm (far below what a wheelbase is measured to): the value
         # then depends on the key alone, not on which run asked first (a batch gives the same numbers in any order)
         d = round(float(distance_m), 4)
-        key = ("C", tf_index, d, tr.sides, tr_other.sides, tr.theta, tr_other.theta, tr.freqs_hz.size)
-        if key not in self.cache:
-            tf = self.default_trackform() if tf_index < 0 else self.trackforms()[tf_index][2]
-            self.cache[key] = rail_coupling(tr.freqs_hz, tf, d, tr.sides, tr_other.sides, tr.theta, tr_other.theta)
-        return self.cache[key]
+        f = tr.freqs_hz
+        tf = self._trackform(tf_index)
+        key = ("C", tf, d, tr.sides, tr_other.sides, tr.theta, tr_other.theta, f.size, float(f[0]), float(f[-1]))
+        if key not in TRACK_MEMO:
+            TRACK_MEMO[key] = rail_coupling(f, tf, d, tr.sides, tr_other.sides, tr.theta, tr_other.theta)
+        return TRACK_MEMO[key]
 
     def resonances(self, tf_index: int = -1):
         key = ("res", tf_index)
         if key not in self.cache:
-            tf = self.default_trackform() if tf_index < 0 else self.trackforms()[tf_index][2]
-            self.cache[key] = model_resonances(self.model, tf, self.contact_stiffness)
+            self.cache[key] = model_resonances(self.model, self._trackform(tf_index), self.contact_stiffness)
         return self.cache[key]
 
 
@@ -741,8 +754,8 @@ def _say_once(run, steps: list, msg: str) -> None:
         log.warning("%s: %s", run.source, msg)
 
 
-def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, format: str | None = None
-                 ) -> FieldEstimate:
+def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, format: str | None = None,
+                 indexes_only: bool = False) -> FieldEstimate:
     """Estimate rail roughness per rail from one run (module docstring).
 
     Parameters
@@ -755,6 +768,12 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
         Override the header's direction of travel.
     format : str, optional
         Run-file format when ``run`` is a path.
+    indexes_only : bool
+        The profiles and their band indexes only, for another estimate of accelerations already estimated
+        (the monitoring's uncertainty variants, :mod:`estimator.monitoring.variants`): the channels are not
+        checked against the sensor table again (the same accelerations' first estimate did it), and the
+        stretch tables (``indexes``, ``spectra``, ``corrugation``) are left empty. The profiles are those of the
+        full estimate, to the bit.
 
     Returns
     -------
@@ -867,7 +886,7 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
     # ---- wheelbase
     t0 = time.perf_counter()
     scale_why = "give the wheelbase (wheelbase_m / --wheelbase) for the lead/trail lag to measure it"
-    if not defer:
+    if not defer and not indexes_only:
         # the channels against the sensor table first: a channel of the wrong sign or on the wrong side would
         # otherwise surface as an unmeasurable wheelbase (a deferred pair is checked once coupled, below)
         _check_arrangement(run, fm, tis, track, orient, lam_min)
@@ -1008,7 +1027,7 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
                               f"other wheelset rolls on the same rails {wb:.3f} m away and its contact forces, which "
                               f"deflect the rail under this one, are not measured ({UNCOUPLED_EFFECT}); instrument "
                               f"both wheelsets for the coupled estimate")
-    if defer:  # inverted once, coupled: the channels checked on those estimates
+    if defer and not indexes_only:  # inverted once, coupled: the channels checked on those estimates
         t0 = time.perf_counter()
         _check_arrangement(run, fm, tis, track, orient, lam_min)
         timings["wheelbase"] += time.perf_counter() - t0
@@ -1107,7 +1126,7 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
     stretches = _stretches(fm, float(np.nanmin(all_x)), float(np.nanmax(all_x)))
     index_rows, spec_rows, corr_rows = [], [], []
     resonances = fm.resonances()
-    for (w, kind), p in profiles.items():
+    for (w, kind), p in ({} if indexes_only else profiles).items():
         for name, a, b in [("run", -math.inf, math.inf)] + stretches:
             i0, i1 = np.searchsorted(p.chainage_m, [a, b], side="left")
             sel = slice(int(i0), int(i1))

@@ -169,7 +169,8 @@ def bin_windows(xa: np.ndarray, pk: np.ndarray, dx: float, bands, rails, window_
     return pd.concat(frames, ignore_index=True)[cols]
 
 
-def window_table(estimate, model: str, alignments: Mapping | None, window_m: float) -> pd.DataFrame:
+def window_table(estimate, model: str, alignments: Mapping | None, window_m: float, *,
+                 lr_correlation: bool = True) -> pd.DataFrame:
     """Band peak-to-peak per chainage window, wheelset and rail of one estimate (module docstring).
 
     Parameters
@@ -180,6 +181,9 @@ def window_table(estimate, model: str, alignments: Mapping | None, window_m: flo
     alignments : mapping wheelset → Alignment, optional
         Chainage corrections (none: the estimate's chainage).
     window_m : float
+    lr_correlation : bool
+        Compute the ``lr_correlation`` column (NaN when False: the uncertainty variants, which do not keep it,
+        skip the band filtering it needs).
 
     Returns
     -------
@@ -195,7 +199,7 @@ def window_table(estimate, model: str, alignments: Mapping | None, window_m: flo
         x = p.chainage_m
         xa = alignments[w].apply(x) if alignments and w in alignments else x
         filtered = None
-        if len(p.rails) == 2:
+        if lr_correlation and len(p.rails) == 2:
             # the rails' band-filtered estimates (where the band is resolved) for the cross-talk check; one FFT
             # serves every band (padded for the longest wavelength)
             bad = ~np.isfinite(p.rail)

@@ -221,20 +221,20 @@ def variant_windows(run, variants: list[Variant], alignments, cfg: MonitoringCon
     frames, problems = [], []
     for v in variants:
         try:
-            est = estimate_run(v.applied_to(run), v.field_model)
+            est = estimate_run(v.applied_to(run), v.field_model, indexes_only=True)
         except EstimatorError as exc:
             problems.append(f"{v.label}: {exc}")
             log.warning("%s: variant %s not estimated: %s", run.source, v.label, exc)
             continue
-        w = window_table(est, cfg.model, alignments, cfg.window_m)
+        w = window_table(est, cfg.model, alignments, cfg.window_m, lr_correlation=False)
         frames.append(w.assign(source=v.source, variant=v.label))
     if field_model is not None and cfg.sensor_noise_rms_m_s2 is not None:
         from estimator.monitoring.floor import FLOOR_SOURCE, noise_run
 
         label = f"sensor noise {cfg.sensor_noise_rms_m_s2:g} m/s^2"
         try:
-            est = estimate_run(noise_run(run, cfg.sensor_noise_rms_m_s2), field_model)
-            w = window_table(est, cfg.model, alignments, cfg.window_m)
+            est = estimate_run(noise_run(run, cfg.sensor_noise_rms_m_s2), field_model, indexes_only=True)
+            w = window_table(est, cfg.model, alignments, cfg.window_m, lr_correlation=False)
             frames.append(w.assign(source=FLOOR_SOURCE, variant=label))
         except EstimatorError as exc:
             problems.append(f"{label}: {exc}")
