@@ -10,6 +10,12 @@ still. Here every field model's memo is a view (:class:`Memo`) onto one store pe
 least recently used entries once their arrays exceed a byte budget: entries a run keeps using stay, a finished
 run's are the first to go, and a value recomputed after eviction is the same (each depends on its key alone).
 
+Least recently used is the worst order for a cycle longer than the store: the monitoring's uncertainty run
+uses its 52 variants' transfer functions in the same order every run, so once they exceed the budget each one is
+evicted just before its next use and every run computes all of them again (on the virtual line 126-142 s per
+uncertainty run instead of 64-77 s). The store counts such *refaults* (an evicted key put again) and, once they
+reach :data:`REFAULT_WARNING`, logs one warning naming the budget and how to raise it.
+
 The budget is the environment variable ``RAILMODAL_MEMO_MB`` when it is set, else :data:`DEFAULT_BUDGET_BYTES`;
 inside a Dask worker at most :data:`WORKER_SHARE` of the worker's memory limit, so that the memo alone never
 takes a worker to the 80 % at which Dask pauses it (a paused worker whose memory does not fall runs nothing
@@ -20,6 +26,7 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+import logging
 import os
 import threading
 from collections import OrderedDict
@@ -28,14 +35,23 @@ from typing import Any, Hashable, Iterator
 
 import numpy as np
 
-__all__ = ["Memo", "DEFAULT_BUDGET_BYTES", "WORKER_SHARE", "store_stats", "set_budget"]
+__all__ = ["Memo", "DEFAULT_BUDGET_BYTES", "WORKER_SHARE", "REFAULT_WARNING", "store_stats", "set_budget"]
 
-#: 1 GiB: what one uncertainty run of the monitoring computes (52 variants, 863 MB on the virtual line's curve)
-#: stays for the next day's run. With 384 MiB every variant was evicted before its next use (LRU over a cycle
-#: longer than the store) and ingesting that campaign took 210 s instead of 112 s.
-DEFAULT_BUDGET_BYTES = 2**30
+log = logging.getLogger("estimator")
+
+#: 1.5 GiB: what one uncertainty run of the monitoring reuses on the next (52 variants' transfer functions:
+#: 0.99 GB on the virtual line with its three trackforms and one curve, the track's receptances and couplings
+#: shared, :data:`estimator.workflow.TRACK_MEMO`) stays, with room for a line with more trackforms or curves.
+#: With 384 MiB every variant was evicted before its next use (LRU over a cycle longer than the store) and
+#: ingesting that campaign took 210 s instead of 112 s.
+DEFAULT_BUDGET_BYTES = 3 * 2**29
 #: the largest share of a Dask worker's memory limit the memo may take (the run being estimated needs the rest)
 WORKER_SHARE = 0.35
+#: refaults (evicted keys computed and put again) at which the store warns, once per process, that its budget
+#: is below what the runs reuse
+REFAULT_WARNING = 200
+#: evicted keys remembered to recognise a refault (keys only, no values)
+_GHOSTS = 8192
 
 
 def nbytes(value: Any, _depth: int = 0) -> int:
@@ -64,6 +80,10 @@ class _Store:
         self.keys: dict[int, set] = {}
         self.bytes = 0
         self.evicted = 0
+        #: keys evicted lately (oldest first), and how many of them were put again
+        self.ghosts: OrderedDict[tuple[int, Hashable], None] = OrderedDict()
+        self.refaults = 0
+        self.warned = False
         self.lock = threading.Lock()
 
     def _drop(self, full_key, size: int) -> None:
@@ -82,6 +102,9 @@ class _Store:
             full_key, (_, size) = self.entries.popitem(last=False)
             self._drop(full_key, size)
             self.evicted += 1
+            self.ghosts[full_key] = None
+            if len(self.ghosts) > _GHOSTS:
+                self.ghosts.popitem(last=False)
 
     def get(self, full_key):
         with self.lock:
@@ -95,10 +118,19 @@ class _Store:
             old = self.entries.pop(full_key, None)
             if old is not None:
                 self.bytes -= old[1]
+            elif self.ghosts.pop(full_key, 0) is None:
+                self.refaults += 1
             self.entries[full_key] = (value, size)
             self.keys.setdefault(full_key[0], set()).add(full_key[1])
             self.bytes += size
             self.evict_beyond(self.budget)
+            warn = self.refaults >= REFAULT_WARNING and not self.warned
+            self.warned |= warn
+        if warn:
+            log.warning("the transfer-function memo's budget (%.0f MB) is below what the runs reuse: %d entries "
+                        "were evicted and computed again; set RAILMODAL_MEMO_MB higher (within a Dask worker the "
+                        "memo takes at most %.0f %% of --memory-limit)", self.budget / 2**20, self.refaults,
+                        100 * WORKER_SHARE)
 
     def delete(self, full_key) -> None:
         with self.lock:
@@ -145,9 +177,11 @@ def set_budget(n_bytes: int) -> None:
 
 
 def store_stats() -> dict:
-    """``entries``, ``bytes``, ``budget`` and ``evicted`` (entries evicted so far) of this process's store."""
+    """``entries``, ``bytes``, ``budget``, ``evicted`` (entries evicted so far) and ``refaults`` (evicted keys put
+    again) of this process's store."""
     s = _store()
-    return {"entries": len(s.entries), "bytes": s.bytes, "budget": s.budget, "evicted": s.evicted}
+    return {"entries": len(s.entries), "bytes": s.bytes, "budget": s.budget, "evicted": s.evicted,
+            "refaults": s.refaults}
 
 
 class Memo(MutableMapping):

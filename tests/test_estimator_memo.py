@@ -123,3 +123,25 @@ def test_runs_with_keys_of_their_own_leave_the_store_within_its_budget(synthetic
         estimate_run(synthetic_run.path, fm)
         assert store_stats()["bytes"] <= cap
     assert store_stats()["evicted"] > evicted
+
+
+def test_a_budget_below_what_the_runs_reuse_is_counted_and_said_once(monkeypatch, caplog):
+    """A cycle longer than the store (the uncertainty variants, run after run) makes LRU evict each entry just
+    before its next use: every key comes back. The store counts those refaults and warns once."""
+    monkeypatch.setattr(memo_mod, "_STORE", memo_mod._Store(10 * 8000))
+    monkeypatch.setattr(memo_mod, "REFAULT_WARNING", 15)
+    m = Memo()
+    with caplog.at_level("WARNING", logger="estimator"):
+        for k in range(12):  # 12 entries of 8000 bytes in a store of 10: the first two go
+            m[k] = np.zeros(1000)
+        assert store_stats()["refaults"] == 0 and 0 not in m
+        for _ in range(2):  # the same cycle again: each key was evicted before it came back
+            for k in range(12):
+                if k not in m:
+                    m[k] = np.zeros(1000)
+        # LRU at its worst: in each later cycle every key was evicted by the put before it, so all 12 come back
+        assert store_stats()["refaults"] == 24
+        said = [r.getMessage() for r in caplog.records if "RAILMODAL_MEMO_MB" in r.getMessage()]
+        assert len(said) == 1 and "budget (0 MB)" in said[0] and "24 entries" not in said[0]  # said at the 15th
+        m["fresh"] = np.zeros(1000)  # a key never evicted is no refault
+    assert store_stats()["refaults"] == 24
