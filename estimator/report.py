@@ -58,7 +58,9 @@ def write_report(estimate, path, *, figures: Mapping[str, Path] | None = None,
     speeds = [p.speed_m_s for p in e.profiles.values()]
     v = np.concatenate(speeds) if speeds else np.zeros(0)
     v = v[np.isfinite(v)]
-    hdr = pd.DataFrame([{"field": k, "value": v_} for k, v_ in e.header.items()])
+    # a field the run file leaves empty says so, rather than showing as a blank cell
+    hdr = pd.DataFrame([{"field": k, "value": v_ if v_ not in ("", None) else "(not in the run header)"}
+                        for k, v_ in e.header.items()])
     parts += [f"<h2>{SECTION_TITLES[0]}</h2>",
               f"<div class='box'>File {_e(e.source)}; {e.duration_s:.1f} s at {e.fs:g} Hz; travelling "
               f"<b>{_e(e.direction)}</b> (car {_e(e.orientation)}): wheelset <b>{e.leading}</b> leads. Speed over the "

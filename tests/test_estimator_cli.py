@@ -49,6 +49,9 @@ def test_field_estimate_writes_profiles_tables_figures_and_the_report(inputs, ca
     for title in SECTION_TITLES:
         assert title in html
     assert html.count("data:image/png;base64") >= 4
+    # the header's fields, given or not: the synthetic file names its train and leaves leading_end out
+    assert "<td>train</td><td>T1</td>" in html
+    assert "<td>leading_end</td><td>(not in the run header)</td>" in html
     # the report opens with the findings the console printed, the same sentences (µm where the console says um)
     box = html[html.index("<b>In short.</b>"):html.index(SECTION_TITLES[0])]
     found = [ln for ln in text.out.splitlines() if ln.startswith(("corrugated:", "no stretch above"))]
