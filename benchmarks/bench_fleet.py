@@ -161,18 +161,21 @@ def main(argv=None) -> int:
     print(f"a {FLEET_TRAINS}-train fleet recording {HOURS_PER_DAY:g} h a day records {rec_per_day / 3600:.0f} h a day: "
           f"{rec_per_day / per_core[2] / 3600:.1f} core-hours of processing, i.e. {cores:.2f} core(s) running around "
           f"the clock (at least 1; {max(1, int(np.ceil(cores)))} to keep up)")
-    # the intervals' extra cost: one run through perturbed and shifted models (scaled to the default 25 + 12)
+    # the intervals' extra cost: one run through the perturbed, shifted, contact and track variants (a reduced
+    # set: 3 perturbed models, one placement shift), per variant, scaled to the default set's count
     mc = MonitoringConfig(n_perturbed=3, placement_shifts_mm=(30.0,), placement_axes=("y",), uncertainty_runs=1)
     spec_u = IngestSpec(spec.model, spec.sensors, line=spec.line, estimator=spec.estimator, monitoring=mc)
+    n_u = len(run_context(spec_u).uncertainty_variants())
+    spec_full = IngestSpec(spec.model, spec.sensors, line=spec.line, estimator=spec.estimator,
+                           monitoring=MonitoringConfig())
+    n_full = len(run_context(spec_full).uncertainty_variants())
     process_run(str(paths[0]), spec_u, ref, uncertainty=True)  # derive the variants' transfer functions once
     t0 = time.perf_counter()
-    process_run(str(paths[0]), spec_u, ref, uncertainty=True)
+    res_u = process_run(str(paths[0]), spec_u, ref, uncertainty=True)
     t_u = time.perf_counter() - t0
-    per_variant = max(t_u - t_loc / args.runs, 0.0) / 5
-    full = MonitoringConfig()
-    n_full = full.n_perturbed + 2 * len(full.placement_shifts_mm) * len(full.placement_axes)
-    print(f"intervals: {per_variant:.2f} s per variant and run; the default {n_full} variants on one run a day add "
-          f"{n_full * per_variant:.0f} core-seconds a day per line (negligible beside the fleet's "
+    per_variant = res_u.timings_s.get("variants", t_u) / n_u
+    print(f"intervals: {per_variant:.2f} s per variant and run ({n_u} variants timed); the default {n_full} "
+          f"variants on one run a day add {n_full * per_variant:.0f} core-seconds a day per line (beside the fleet's "
           f"{rec_per_day / per_core[2]:.0f})")
     print(f"load average after: {os.getloadavg()}")
     return 0
