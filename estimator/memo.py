@@ -12,8 +12,9 @@ run's are the first to go, and a value recomputed after eviction is the same (ea
 
 Least recently used is the worst order for a cycle longer than the store: the monitoring's uncertainty run
 uses its 52 variants' transfer functions in the same order every run, so once they exceed the budget each one is
-evicted just before its next use and every run computes all of them again (on the virtual line 126-142 s per
-uncertainty run instead of 64-77 s). The store counts such *refaults* (an evicted key put again) and, once they
+evicted just before its next use and every run computes all of them again (on the virtual line, with a 600 MB
+budget, 111 s per uncertainty run instead of the 64 s it takes when they fit: 624 refaults in the second run).
+The store counts such *refaults* (an evicted key put again) and, once they
 reach :data:`REFAULT_WARNING`, logs one warning naming the budget and how to raise it.
 
 The budget is the environment variable ``RAILMODAL_MEMO_MB`` when it is set, else :data:`DEFAULT_BUDGET_BYTES`;
