@@ -119,7 +119,8 @@ class _Store:
             old = self.entries.pop(full_key, None)
             if old is not None:
                 self.bytes -= old[1]
-            elif self.ghosts.pop(full_key, 0) is None:
+            elif full_key in self.ghosts:  # evicted, and wanted again
+                del self.ghosts[full_key]
                 self.refaults += 1
             self.entries[full_key] = (value, size)
             self.keys.setdefault(full_key[0], set()).add(full_key[1])
