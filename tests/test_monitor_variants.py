@@ -7,6 +7,8 @@ trackform and coupling key, however many variants of the wheelset model use them
 
 from __future__ import annotations
 
+from collections import Counter
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -76,17 +78,12 @@ def test_variants_of_one_wheelset_model_share_the_tracks_receptance_and_coupling
     set_budget(2**30)
     before = store_stats()["evicted"]
     estimate_run(run, fm)
-    shared = {k[0]: 0 for k in TRACK_MEMO}
-    for k in TRACK_MEMO:
-        shared[k[0]] += 1
-    assert shared.get("track", 0) >= 1 and shared.get("C", 0) >= 1
+    shared = Counter(k[0] for k in TRACK_MEMO)
+    assert shared["track"] >= 1 and shared["C"] >= 1
     vs = perturbed_variants(fm, MON) + placement_variants(fm, MON)
     for v in vs:
         estimate_run(v.applied_to(run), v.field_model, indexes_only=True)
         assert not any(k[0] in ("track", "C") for k in v.field_model.cache)
         assert any(k[0] == "T" for k in v.field_model.cache)  # the wheelset's transfer functions are its own
-    after = {k[0]: 0 for k in TRACK_MEMO}
-    for k in TRACK_MEMO:
-        after[k[0]] += 1
-    assert after == shared  # nothing added: every variant found the nominal model's
+    assert Counter(k[0] for k in TRACK_MEMO) == shared  # nothing added: every variant found the nominal model's
     assert store_stats()["evicted"] == before  # (not because something was evicted in between)
