@@ -9,11 +9,12 @@ from __future__ import annotations
 
 import base64
 import html
-import math
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
+
+from receptance.formatting import format_value
 
 __all__ = ["CSS", "escape", "fmt_number", "table_html", "figure_html", "page"]
 
@@ -40,20 +41,9 @@ def escape(x) -> str:
 
 
 def fmt_number(v, digits: int = 4) -> str:
-    """A cell value: numbers with ``digits`` significant digits, '–' for missing, yes/no for booleans."""
-    if v is None:
-        return "–"
-    if isinstance(v, (bool, np.bool_)):
-        return "yes" if v else "no"
-    if isinstance(v, (int, np.integer)):
-        return str(int(v))
-    try:
-        x = float(v)
-    except (TypeError, ValueError):
-        return escape(v)
-    if not math.isfinite(x):
-        return "–"
-    return f"{x:.{digits}g}"
+    """A cell value, escaped: :func:`receptance.formatting.format_value` (numbers with ``digits`` significant
+    digits, '–' for missing, yes/no for booleans)."""
+    return escape(format_value(v, digits))
 
 
 def table_html(df: pd.DataFrame | None, max_rows: int = 60) -> str:

@@ -39,6 +39,7 @@ import numpy as np
 import pandas as pd
 
 from receptance.diagnosis.fitting import BIC_THRESHOLD, MIN_REDUCTION, NOISE_MARGIN
+from receptance.formatting import format_value
 
 __all__ = ["write_diagnosis_report", "ReportError", "SECTION_TITLES"]
 
@@ -102,20 +103,7 @@ def _e(text) -> str:
     return html.escape(str(text), quote=True)
 
 
-def _fmt(v, digits: int = 4) -> str:
-    if v is None:
-        return "–"
-    if isinstance(v, (bool, np.bool_)):
-        return "yes" if v else "no"
-    if isinstance(v, (int, np.integer)):
-        return str(int(v))
-    try:
-        x = float(v)
-    except (TypeError, ValueError):
-        return str(v)
-    if not math.isfinite(x):
-        return "–" if math.isnan(x) else ("∞" if x > 0 else "−∞")
-    return f"{x:.{digits}g}"
+_fmt = format_value
 
 
 def _pct(v, digits: int = 2) -> str:
@@ -221,7 +209,8 @@ def _section_measured(setups_info: Sequence[Mapping], figs: _Figures) -> str:
             "exp. window a [1/s]": s.get("exp_window_decay", ""),
             "modes identified": s.get("n_modes", "")})
     out.append(_table(pd.DataFrame(rows)))
-    methods = [(s.get("setup", ""), s.get("noise_floor_method", "")) for s in setups_info if s.get("noise_floor_method")]
+    methods = [(s.get("setup", ""), s.get("noise_floor_method", "")) for s in setups_info
+               if s.get("noise_floor_method")]
     if methods:
         out.append(_para("Noise floor: " + "; ".join(f"setup {n}: {m}" for n, m in methods) + "."))
     out.append(_para("Each hit is screened before averaging: a second force pulse (double hit), a channel flat at "
