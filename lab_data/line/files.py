@@ -92,12 +92,24 @@ def write_run_mdf(path: Path, *, start: _dt.datetime, header: dict[str, str], de
     return path
 
 
-def write_trolley_csv(path: Path, chainage_m: np.ndarray, roughness_m: np.ndarray) -> Path:
-    """A trolley export: rows per rail (``L`` then ``R``), roughness in µm with 4 decimals."""
+def write_trolley_csv(path: Path, chainage_m: np.ndarray, roughness_m: np.ndarray, *, rows_per_chunk: int = 100_000
+                      ) -> Path:
+    """A trolley export: rows per rail (``L`` then ``R``), chainage and roughness in µm with 4 decimals.
+
+    The text is what ``DataFrame.to_csv(float_format="%.4f")`` writes, byte for byte, formatted by ``%`` on a
+    chunk of rows at once: pandas formats a ``float_format`` column value by value in Python, which took a
+    third of a short campaign's time at the trolley's 1 mm step.
+    """
     path.parent.mkdir(parents=True, exist_ok=True)
-    frames = [pd.DataFrame({"chainage_m": chainage_m, "rail": rail, "roughness_um": roughness_m[i] * 1e6})
-              for i, rail in enumerate("LR")]
-    pd.concat(frames, ignore_index=True).to_csv(path, index=False, float_format="%.4f")
+    x = np.asarray(chainage_m, float)
+    with open(path, "w", newline="") as fh:
+        fh.write("chainage_m,rail,roughness_um\n")
+        for i, rail in enumerate("LR"):
+            um = np.asarray(roughness_m[i], float) * 1e6
+            for a in range(0, x.size, rows_per_chunk):
+                pairs = np.column_stack([x[a:a + rows_per_chunk], um[a:a + rows_per_chunk]]).ravel()
+                text = (f"%.4f,{rail},%.4f\n" * (pairs.size // 2)) % tuple(pairs.tolist())
+                fh.write(text.replace("nan", ""))  # pandas writes a missing value as an empty field
     return path
 
 
