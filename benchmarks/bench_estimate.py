@@ -128,7 +128,7 @@ def main(argv=None) -> int:
     fm = prepare(model, sensor_table(), config=cfg)
     est = estimate_run(sr.path, fm)  # first call: transfer functions computed and memoised
     t_first = time.perf_counter() - t0
-    times, cpu, inv = [], [], []
+    times, cpu, inv, ests = [], [], [], []
     for _ in range(args.repeat):
         t0, c0 = time.perf_counter(), time.process_time()
         est = estimate_run(sr.path, fm)
@@ -136,7 +136,9 @@ def main(argv=None) -> int:
         cpu.append(time.process_time() - c0)
         inv.append(est.timings_s["inversion"] + est.timings_s.get("coupling", 0.0))  # with a given wheelbase the
         # coupled inversion is the only one
+        ests.append(est)
     t_est, t_inv, c_est = min(times), min(inv), min(cpu)
+    est = ests[int(np.argmin(times))]  # the breakdown printed is the fastest repeat's, the one the table shows
     dur = est.duration_s
     run = read_run(sr.path, sensor_table())
     t0, c0 = time.perf_counter(), time.process_time()
