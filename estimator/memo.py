@@ -20,9 +20,10 @@ policy. A loop-resistant one was measured and not kept: a probation queue holdin
 when most recent puts are refaults, as LIRS and 2Q do. On a pure cycle of 15 equal entries through a store of 10 it
 hits 7 a pass where LRU hits 0. On the virtual line's uncertainty runs, 20 variants, with 60 % of their 390 MB
 working set, it cut the puts from 309 to 213–235 a run, but not the time: 46.7 and 50.6 s against LRU's 43.3 and
-49.5 s, with 26–33 s when everything fits. The entries differ in cost by far more than in count, and within one
-variant's estimate each is reused at once, so the cycle is not the simple loop such policies assume. Raising the
-budget is the fix.
+49.5 s, with 26–33 s when everything fits. Evicting the latest put instead (optimal for a pure loop) made it
+worse, 330 and 275 puts: within one variant's estimate an entry is read again right after it is put, so the
+cycle is not the simple loop such policies assume. My reading of why fewer puts did not save time, not measured
+entry by entry: the entries differ in cost far more than in number. Raising the budget is the fix.
 
 The budget is the environment variable ``RAILMODAL_MEMO_MB`` when it is set, else :data:`DEFAULT_BUDGET_BYTES`;
 inside a Dask worker at most :data:`WORKER_SHARE` of the worker's memory limit, so that the memo alone never
