@@ -122,6 +122,12 @@ class Odometry:
         object.__setattr__(self, "names", dict(self.names))
         object.__setattr__(self, "gaps", tuple((float(a), float(b), str(c)) for a, b, c in self.gaps))
 
+    @property
+    def chainage_relative(self) -> bool:
+        """True when the chainage counts from the run's start: the position integrated from the speed with no
+        balise passage to reset it (:mod:`estimator.io.assemble`), so it cannot be placed on a line."""
+        return self.names.get("position", "").startswith("integrated from") and not self.balise_t.size
+
 
 @dataclass(frozen=True)
 class QCEvent:

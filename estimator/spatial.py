@@ -232,10 +232,14 @@ def odometry_track(odo: Odometry, travel_sign: int, *, max_scale_error: float = 
         before = [a[2] for a in anchors if a[2] <= t[j]]
         after = [a[2] for a in anchors if a[2] > t[j]]
         t0, t1 = (before[-1] if before else float(t[0])), (after[0] if after else float(t[-1]))
+        # the finding's chainage is the stretch it masks, not the jump's own metre or two
+        span = pos[(t >= t0) & (t <= t1)]
+        until = "until the next balise" if after else "to the end of the run"
         events.append(QCEvent("odometry_jump", "*", t0, t1,
                               f"odometer jump of {step[j - 1] - expected[j - 1]:+.3f} m at {t[j]:.2f} s without a "
-                              "balise event: odometry not trusted until the next balise", "masked",
-                              float(min(pos[j - 1], pos[j])), float(max(pos[j - 1], pos[j]))))
+                              f"balise event: odometry not trusted {until} (the jump at {float(pos[j - 1]):.2f} m)",
+                              "masked",
+                              float(min(span.min(), pos[j - 1])), float(max(span.max(), pos[j]))))
         untrusted.append((t0, t1))
     scales = []
     for k in range(len(anchors) - 1):

@@ -793,6 +793,12 @@ def estimate_run(run, field_model: FieldModel, *, direction: str | None = None, 
         run = run.with_direction(direction)
     if not run.sensitivity_applied:
         run = run.apply_sensitivities()
+    if fm.line is not None and run.odometry.chainage_relative:
+        # the line's curves (contact angles), trackforms and sections would be laid on the wrong stretch, silently
+        raise ConfigurationError(
+            f"{run.source}: the run's chainage counts from its start (position {run.odometry.names['position']}, "
+            f"no balise passage), so it cannot be placed on line {fm.line.source or fm.line.name!r}: record the "
+            "position or balise channel, or estimate without the line")
     orient = orientation(run.header.direction, run.header.orientation)
     track = odometry_track(run.odometry, orient.travel_sign, max_scale_error=cfg.max_scale_error, source=run.source)
     run = check_run(run, track, cfg)

@@ -95,6 +95,28 @@ def test_the_formats_give_the_same_run(tmp_path, table, fmt):
     assert run.odometry.speed[0] == pytest.approx(10.0)
 
 
+@pytest.mark.parametrize("kind", ["datetime", "timedelta"])
+def test_a_parquet_time_column_of_clock_times_or_durations_is_read_in_seconds(tmp_path, table, kind):
+    """pandas writes a DAQ's time stamps as datetime64 (or timedelta64): read as numbers they would be
+    nanoseconds and the 1 kHz channels refused as sampled at 1e-6 Hz. Clock times count from the first stamp."""
+    ch = _channels()
+    p = _write(tmp_path, "plain", ch, "parquet")
+    df = pd.read_parquet(p)
+    dt = pd.to_timedelta(df["t_s"], unit="s")
+    df["t_s"] = pd.Timestamp("2026-02-03 08:00:00") + dt if kind == "datetime" else dt
+    q = tmp_path / f"{kind}.parquet"
+    df.to_parquet(q)
+    import pyarrow.parquet as pq
+
+    meta = pq.read_schema(p).metadata
+    pq.write_table(pq.read_table(q).replace_schema_metadata({**pq.read_schema(q).metadata, b"run_header":
+                                                             meta[b"run_header"]}), q)
+    a, b = read_run(p, table), read_run(q, table)
+    np.testing.assert_allclose(b.t, a.t, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(b.acceleration, a.acceleration)
+    np.testing.assert_allclose(b.odometry.balise_t, [1.0], atol=1e-9)
+
+
 def test_an_unknown_format_lists_the_supported_ones(tmp_path, table):
     p = tmp_path / "run.xyz"
     p.write_bytes(b"\x00\x01garbage" * 10)
@@ -113,6 +135,23 @@ def test_a_truncated_mdf4_is_a_named_error(tmp_path, table):
     cut.write_bytes(data[: len(data) // 3])
     with pytest.raises(RunFileError, match="cut.mf4"):
         read_run(cut, table)
+
+
+def test_an_mdf3_file_is_named_as_such_by_the_estimate_and_by_a_batch_reading_its_header(tmp_path, table):
+    """MDF 3 carries no XML header comment: a batch reading the header first once refused it for a missing
+    date, hiding the reason the estimate gives."""
+    from asammdf import MDF
+
+    from estimator.monitoring.headers import read_header
+
+    p = tmp_path / "run.mf4"
+    write_mdf4(p, _channels(), HEADER)
+    old = tmp_path / "run.mdf"
+    with MDF(str(p)) as mdf:
+        mdf.convert("3.30").save(str(old), overwrite=True)
+    for read in (lambda q: read_run(q, table), read_header):
+        with pytest.raises(RunFileError, match=r"run.mdf: MDF version 3.30; the field contract uses MDF 4"):
+            read(old)
 
 
 def test_a_missing_channel_is_rejected_and_logged_not_invented(tmp_path, table, caplog):
@@ -360,6 +399,35 @@ def test_a_name_in_two_channel_groups_is_kept_when_equal_and_must_be_chosen_when
     np.testing.assert_array_equal(run.acceleration[run.index(full_rate[0])], v * G)
 
 
+def test_two_channels_of_one_name_in_one_group_must_be_chosen_and_a_unit_spelling_is_no_difference(tmp_path,
+                                                                                                    table):
+    """Two modules' inputs of one name in one channel group (a Vector-style ``SIGNAL\\SOURCE`` name indexes the
+    bare name twice) are two signals: neither is picked silently (the last one once was). A copy in another group
+    whose unit is spelled ``G`` where the first says ``g`` holds the same data: one channel."""
+    from asammdf import MDF, Signal
+
+    from estimator.io.registry import read_raw
+
+    ch = _channels()
+    t, v, u = ch["ACC_W1R_Z"]
+    path = tmp_path / "module.mf4"
+    write_mdf4(path, ch, HEADER)
+    mdf = MDF(str(path))
+    mdf.append([Signal(-v, t, name="ACC_W1R_Z", unit=u), Signal(3 * v, t, name="ACC_W1R_Z", unit=u)])
+    mdf.save(str(path), overwrite=True)
+    mdf.close()
+    with pytest.raises(ChannelError, match=r"'ACC_W1R_Z' of the sensor table cannot be used: channel groups "
+                                           r"\[\d+, \d+\] hold 3 channels .*'ACC_W1R_Z@\d+', "
+                                           r"'ACC_W1R_Z@\d+\.\d+', 'ACC_W1R_Z@\d+\.\d+'\]"):
+        read_run(path, table)
+    raw, _ = read_raw(path)
+    copies = sorted((n for n in raw.channels if n.startswith("ACC_W1R_Z@")), key=lambda n: n.count("."))
+    assert len(copies) == 3 and [raw.channels[n].values[1] / v[1] for n in copies[1:]] == pytest.approx([-1, 3])
+    same = _mdf_with_two_groups(tmp_path / "same.mf4", ch, ("ACC_W1R_Z", t, v, "G"))
+    raw, _ = read_raw(same)
+    assert "ACC_W1R_Z" in raw.channels and "ACC_W1R_Z" not in raw.unusable
+
+
 @pytest.mark.parametrize("file_unit, table_unit, factor", [
     ("m s-2", "m/s^2", 1.0), ("m·s⁻²", "m/s²", 1.0), ("m/s**2", "m/s^2", 1.0), ("G", "g", G), ("gn", "g", G),
     ("mm/s^2", "mm/s²", 1e-3),
@@ -583,6 +651,32 @@ def test_an_odometer_that_does_not_reset_at_a_balise_is_pinned_to_the_balise_and
     assert not [e for e in odometry_track(run.odometry, +1).events if e.kind == "odometry_not_reset"]
 
 
+@pytest.mark.parametrize("style", ["held", "pulse"])
+def test_a_sampled_balise_channel_gives_one_passage_per_telegram_not_one_per_sample(tmp_path, table, style, caplog):
+    """Loggers often sample the balise reader with the odometry (100 Hz) instead of writing one event per passage:
+    the last telegram's chainage held (0 before the first), or each telegram for a few samples between idle zeros.
+    Either way the passages are where the value changes to a telegram (1 s at 110 m and 2 s at 120 m here, on an
+    odometer counting 100 + 10 t that resets correctly); each sample read as a passage once pinned the chainage
+    to the held value and masked the whole run. Said in the log, with the passages taken."""
+    from estimator.spatial import odometry_track
+
+    ch = _channels()
+    to = ch["SPEED"][0]
+    if style == "held":
+        v = np.select([to >= 2.0, to >= 1.0], [120.0, 110.0], 0.0)
+    else:
+        v = np.select([(to >= 2.0) & (to < 2.03), (to >= 1.0) & (to < 1.03)], [120.0, 110.0], 0.0)
+    ch["BALISE"] = (to, v, "m")
+    with caplog.at_level(logging.WARNING, logger="estimator"):
+        run = read_run(_write(tmp_path, style, ch, "parquet"), table)
+    np.testing.assert_allclose(run.odometry.balise_t, [1.0, 2.0], atol=1e-9)
+    np.testing.assert_allclose(run.odometry.balise_chainage, [110.0, 120.0])
+    assert "balise channel 'BALISE' is sampled (300 samples" in caplog.text and "2 passage(s) taken" in caplog.text
+    tr = odometry_track(run.odometry, +1)
+    assert not [e for e in tr.events if e.kind in ("odometry_not_reset", "odometry_jump")]
+    np.testing.assert_allclose(tr.chainage_at(np.array([0.5, 1.5, 2.5])), [105.0, 115.0, 125.0], atol=1e-6)
+
+
 def test_a_header_that_cannot_be_read_or_gives_a_key_twice_and_rows_without_a_channel_are_named(tmp_path, table):
     """The run's identity must not be lost or chosen silently: an MDF 4 header comment that is not valid XML (an
     unescaped '&'), a CSV header giving 'direction' twice with two values, and CSV rows with an empty channel
@@ -613,13 +707,17 @@ def test_a_header_that_cannot_be_read_or_gives_a_key_twice_and_rows_without_a_ch
 
 
 def test_a_channel_without_a_unit_in_the_file_is_named(tmp_path, table, caplog):
-    """The file cannot confirm the sensor table's unit of a channel it gives without one: read, and said."""
+    """The file cannot confirm the sensor table's unit of a channel it gives without one: read, and said — for the
+    odometry too, where km/h read as m/s would silently put the run 3.6 times as far along the line."""
     ch = _channels()
     ch["ACC_W1L_Z"] = (*ch["ACC_W1L_Z"][:2], "")
+    ch["SPEED"] = (*ch["SPEED"][:2], "")
     with caplog.at_level(logging.WARNING, logger="estimator"):
         run = read_run(_write(tmp_path, "nounit", ch, "csv"), table)
     assert "ACC_W1L_Z" in run.names
     assert "acceleration channel(s) ACC_W1L_Z (g) carry no unit in the file" in caplog.text
+    assert "the speed channel 'SPEED' carries no unit in the file: read in the sensor table's 'm/s'" in caplog.text
+    assert "position channel" not in caplog.text
 
 
 def test_text_in_a_number_column_is_refused_and_infinity_is_named(tmp_path, table):

@@ -351,6 +351,33 @@ def test_calibrated_angles_for_a_curve_the_line_lacks_are_refused_not_carried_as
     assert fm.config.curve_angles("C1", "leading", {"L": "L", "R": "R"}) == pytest.approx((-0.3, 0.03))
 
 
+def test_a_chainage_counted_from_the_runs_start_is_not_laid_on_the_line(tmp_path):
+    """A speed-only logger without a balise channel gives a chainage relative to the run's start: laid on the line
+    it would take another stretch's curves (contact angles), trackforms and section names, silently. With a line
+    the estimate is refused, naming the run and the line; one balise passage makes the chainage absolute."""
+    import json
+
+    from estimator import ConfigurationError, estimate_run, prepare, read_line
+    from test_estimator_io import _channels, _write
+    from test_estimator_synthetic import control_model, sensor_table
+
+    (tmp_path / "line.json").write_text(json.dumps({"name": "M1", "curves": [
+        {"id": "C1", "from_m": 100, "to_m": 300, "radius_m": 400, "direction": "left"}]}))
+    table = sensor_table().query("quantity not in ('position', 'balise')")
+    ch = {k: v for k, v in _channels().items() if k not in ("POSITION", "BALISE")}
+    run = _write(tmp_path, "speedonly", ch, "parquet")
+    model = control_model()
+    with pytest.raises(ConfigurationError, match=r"speedonly.parquet: the run's chainage counts from its start "
+                                                 r"\(position integrated from SPEED, no balise passage\), so it "
+                                                 r"cannot be placed on line .*line.json"):
+        estimate_run(run, prepare(model, table, line=read_line(tmp_path / "line.json")))
+    from estimator import read_run
+
+    assert read_run(run, table).odometry.chainage_relative
+    with_balise = _write(tmp_path, "balise", {**ch, "BALISE": _channels()["BALISE"]}, "parquet")
+    assert not read_run(with_balise, sensor_table().query("quantity != 'position'")).odometry.chainage_relative
+
+
 def test_chainage_no_trackform_section_holds_is_named(tmp_path):
     """A line whose trackform sections cover 0-500 m and 560-1000 m: a wheelset passing 480-600 m is told that
     500-560 m takes the default trackform (the stretches it passes there, to the sample); a line covering it all,

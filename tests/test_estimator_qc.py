@@ -71,6 +71,10 @@ def test_an_implausible_balise_jump_masks_the_stretch_and_a_jump_without_balise_
     tr = odometry_track(_odo(pos), +1)
     (ev,) = [e for e in tr.events if e.kind == "odometry_jump"]
     assert "without a balise" in ev.reason and tr.untrusted
+    # no balise on either side: the whole run is masked, and the finding's chainage is all of it (the odometer's
+    # 50-353 m), not the jump's 3 m at 200 m
+    assert "not trusted to the end of the run (the jump at 199.90 m)" in ev.reason
+    assert (ev.chainage_from, ev.chainage_to) == (pytest.approx(50.0), pytest.approx(352.9, abs=0.01))
 
 
 @pytest.fixture(scope="module")

@@ -286,6 +286,33 @@ def _nan_stretches(ch: RawChannel) -> list[tuple[float, float, str]]:
     return out
 
 
+SAMPLED_BALISE_REPEAT_SHARE = 0.5
+"""A balise channel most of whose samples repeat the one before is sampled (the logger holds the last telegram's
+chainage, or an idle value between telegrams), not an event list (one sample per passage)."""
+
+
+def _balise_passages(t: np.ndarray, v: np.ndarray, name: str, source: str) -> tuple[np.ndarray, np.ndarray]:
+    """The balise passages (time, chainage) of a balise channel.
+
+    An event list (one sample per passage) is returned as it is. A sampled channel
+    (:data:`SAMPLED_BALISE_REPEAT_SHARE`) has a passage where its value changes: the first sample with a new value.
+    Its first value is a telegram received before the run (or the logger's idle value), and a return to it is the
+    logger going idle between telegrams (a pulse-style channel); neither is a passage. Both are logged.
+    """
+    if t.size < 3:
+        return t, v
+    same = v[1:] == v[:-1]
+    if same.mean() <= SAMPLED_BALISE_REPEAT_SHARE:
+        return t, v
+    change = np.flatnonzero(~same) + 1
+    passage = change[v[change] != v[0]]
+    log.warning("%s: balise channel %r is sampled (%d samples, %.0f %% repeating the one before), not one sample "
+                "per passage: %d passage(s) taken where its value changes (at %s s); its first value %.3f m and "
+                "returns to it are taken as held from before the run or idle", source, name, t.size,
+                100 * same.mean(), passage.size, ", ".join(f"{x:.3f}" for x in t[passage][:10]), v[0])
+    return t[passage], v[passage]
+
+
 def _odometry(raw: RawRecording, sensors: pd.DataFrame, source: str, direction: str) -> tuple[Odometry, str]:
     """The run's odometry, and a processing note when one of speed and position is derived from the other."""
     rows = {q: sensors[sensors["quantity"] == q] for q in ("speed", "position", "balise")}
@@ -300,6 +327,10 @@ def _odometry(raw: RawRecording, sensors: pd.DataFrame, source: str, direction: 
                                 f"file has {sorted(raw.channels)}")
         ch = raw.channels[name]
         _unit_check(ch, rows[q].iloc[0], source)
+        if not normalise_unit(ch.unit):
+            # km/h read as m/s puts the run 3.6 times as far along the line, and nothing downstream can tell
+            log.warning("%s: the %s channel %r carries no unit in the file: read in the sensor table's %r, which "
+                        "the file cannot confirm", source, q, name, rows[q]["unit"].iloc[0])
         if ch.values.size < 2 or np.isfinite(ch.values).sum() < 2:
             raise OdometryError(f"{source}: the {q} channel {name!r} holds fewer than two finite values")
         # NaN in a recorded channel is a stretch it does not cover, like lost samples: odometry_track bridges a
@@ -320,7 +351,8 @@ def _odometry(raw: RawRecording, sensors: pd.DataFrame, source: str, direction: 
                 log.warning("%s: balise channel %r: %d event(s) without a finite chainage ignored (at %s s); the "
                             "odometer reset there is unexplained", source, bn, int((~ok).sum()),
                             ", ".join(f"{x:.3f}" for x in bc.t[~ok][:10]))
-            bt, bv = bc.t[ok], bc.values[ok] * float(rows["balise"]["sensitivity"].iloc[0])
+            bt, bv = _balise_passages(bc.t[ok], bc.values[ok], bn, source)
+            bv = bv * float(rows["balise"]["sensitivity"].iloc[0])
             names["balise"] = bn
         else:
             log.warning("%s: balise channel %r is not in the file; no odometer reset is known", source, bn)

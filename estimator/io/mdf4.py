@@ -19,6 +19,7 @@ import numpy as np
 
 from estimator.errors import RunFileError
 from estimator.io.registry import RawChannel, RawRecording
+from estimator.io.sensors import normalise_unit
 
 __all__ = ["sniff", "read_raw", "header_properties", "run_header", "raw_header_comment", "RepeatedHeaderKey"]
 
@@ -130,7 +131,8 @@ def _quiet_half_built_mdf(hook):
 
 
 def open_mdf(path: Path):
-    """``asammdf.MDF(path)``, or :class:`RunFileError` naming the file and asammdf's reason.
+    """``asammdf.MDF(path)`` of an MDF 4 file, or :class:`RunFileError` naming the file and asammdf's reason (or
+    the version of an MDF 3 file).
 
     A damaged file leaves asammdf's reader half built; its ``__del__`` then fails on attributes ``__init__``
     never set, and Python would print that traceback on the user's terminal after the named error. The object
@@ -143,9 +145,15 @@ def open_mdf(path: Path):
     sys.unraisablehook = _quiet_half_built_mdf(hook)
     try:
         try:
-            return MDF(str(path))
+            mdf = MDF(str(path))
         except Exception as exc:  # noqa: BLE001 - asammdf raises many kinds on a damaged file
             reason = f"{type(exc).__name__}: {exc}"
+        else:
+            if int(str(mdf.version).split(".")[0]) >= 4:
+                return mdf
+            version = mdf.version
+            mdf.close()
+            raise RunFileError(f"{path}: MDF version {version}; the field contract uses MDF 4")
         gc.collect()  # the half-built reader dies with the exception's frames
     finally:
         sys.unraisablehook = hook
@@ -168,17 +176,25 @@ def _read(mdf, path: Path, name: str, group: int, index: int) -> RawChannel | st
 def _same(a: RawChannel, b: RawChannel) -> bool:
     if a is b:
         return True
-    return (a.unit == b.unit and a.t.shape == b.t.shape and np.array_equal(a.t, b.t, equal_nan=True)
-            and np.array_equal(a.values, b.values, equal_nan=True))
+    return (normalise_unit(a.unit) == normalise_unit(b.unit) and a.t.shape == b.t.shape
+            and np.array_equal(a.t, b.t, equal_nan=True) and np.array_equal(a.values, b.values, equal_nan=True))
+
+
+def _copy_labels(name: str, keys: list[tuple[int, int]]) -> dict[tuple[int, int], str]:
+    """``NAME@GROUP`` per copy, ``NAME@GROUP.INDEX`` for the copies of a group that holds several."""
+    per_group = {g: sum(1 for k, _ in keys if k == g) for g, _ in keys}
+    return {(g, i): f"{name}@{g}" if per_group[g] == 1 else f"{name}@{g}.{i}" for g, i in keys}
 
 
 def read_raw(path: Path) -> RawRecording:
     """Every channel of an MDF 4 file (time stamps, values, unit) and the header's common properties.
 
-    A name that several channel groups carry (a data logger recording one signal in two groups, or two signals
-    of one name) is kept when every copy holds the same data. Otherwise each copy is available as
-    ``NAME@GROUP`` (the channel group's index in the file) and ``NAME`` alone is listed as unusable, with the
-    qualified names in the reason: the sensor table must say which one it means; nothing is picked silently.
+    A name that several channels carry (a data logger recording one signal in two groups, two signals of one
+    name, or two modules' inputs of one name in one group) is kept when every copy holds the same data (units
+    compared by :func:`normalise_unit`, so ``g`` and ``G`` are one unit). Otherwise each copy is available as
+    ``NAME@GROUP`` (the channel group's index in the file; ``NAME@GROUP.INDEX`` when one group holds several
+    copies) and ``NAME`` alone is listed as unusable, with the qualified names in the reason: the sensor table
+    must say which one it means; nothing is picked silently.
 
     Raises
     ------
@@ -187,21 +203,17 @@ def read_raw(path: Path) -> RawRecording:
     """
     mdf = open_mdf(path)
     try:
-        if int(str(mdf.version).split(".")[0]) < 4:
-            raise RunFileError(f"{path}: MDF version {mdf.version}; the field contract uses MDF 4")
         header = run_header(mdf, path)
         channels: dict[str, RawChannel] = {}
         unusable: dict[str, str] = {}
         for name, where in mdf.channels_db.items():
             if name in ("time", "t", ""):
                 continue
-            copies = {}
-            for group, index in where:
-                if index != mdf.masters_db.get(group):
-                    copies[group] = _read(mdf, path, name, group, index)
+            copies = {(group, index): _read(mdf, path, name, group, index)
+                      for group, index in where if index != mdf.masters_db.get(group)}
             if not copies:
                 continue
-            read = {g: c for g, c in copies.items() if isinstance(c, RawChannel)}
+            read = {k: c for k, c in copies.items() if isinstance(c, RawChannel)}
             if not read:
                 unusable[name] = next(iter(copies.values()))
                 continue
@@ -209,10 +221,12 @@ def read_raw(path: Path) -> RawRecording:
             if all(_same(first, c) for c in read.values()):
                 channels[name] = first
                 continue
-            for g, c in read.items():
-                channels[f"{name}@{g}"] = RawChannel(f"{name}@{g}", c.t, c.values, c.unit)
-            unusable[name] = (f"channel groups {sorted(read)} each hold a channel of this name with different data; "
-                              f"name one of {[f'{name}@{g}' for g in sorted(read)]} in the sensor table")
+            labels = _copy_labels(name, sorted(read))
+            for key, label in labels.items():
+                channels[label] = RawChannel(label, read[key].t, read[key].values, read[key].unit)
+            groups = sorted({g for g, _ in read})
+            unusable[name] = (f"channel groups {groups} hold {len(read)} channels of this name with different data; "
+                              f"name one of {list(labels.values())} in the sensor table")
     finally:
         mdf.close()
     if not channels:

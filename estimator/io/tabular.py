@@ -14,6 +14,7 @@ in either form, so an MDF 4 recording can be converted.
 from __future__ import annotations
 
 import json
+import logging
 from pathlib import Path
 from typing import Mapping
 
@@ -24,6 +25,8 @@ from estimator.errors import RunFileError
 from estimator.io.registry import RawChannel, RawRecording
 
 __all__ = ["sniff_parquet", "sniff_csv", "read_parquet", "read_csv", "read_csv_header", "write_run_table", "COLUMNS"]
+
+log = logging.getLogger("estimator")
 
 COLUMNS = ("channel", "t_s", "value", "unit")
 HEADER_KEY = b"run_header"
@@ -61,6 +64,20 @@ def _numbers(cells: pd.Series, path: Path, channel, column: str) -> np.ndarray:
     return values.to_numpy(float)
 
 
+def _seconds(df: pd.DataFrame, path: Path) -> pd.DataFrame:
+    """``t_s`` in seconds: a column of clock times (datetime64, as pandas writes a DatetimeIndex reset to a
+    column) counts from the table's first stamp, a column of durations (timedelta64) is converted. Read as
+    numbers, either would be nanoseconds: a 1 kHz channel would look sampled at 1e-6 Hz."""
+    t = df["t_s"]
+    if pd.api.types.is_datetime64_any_dtype(t):
+        t0 = t.min()
+        log.info("%s: column t_s holds clock times: read as seconds from the first stamp, %s", path, t0)
+        return df.assign(t_s=(t - t0).dt.total_seconds())
+    if pd.api.types.is_timedelta64_dtype(t):
+        return df.assign(t_s=t.dt.total_seconds())
+    return df
+
+
 def _from_frame(df: pd.DataFrame, header: Mapping[str, str], path: Path) -> RawRecording:
     missing = [c for c in COLUMNS[:3] if c not in df.columns]
     if missing:
@@ -73,6 +90,7 @@ def _from_frame(df: pd.DataFrame, header: Mapping[str, str], path: Path) -> RawR
         raise RunFileError(f"{path}: {rows.size} data row(s) have no channel name (row(s) "
                            f"{', '.join(map(str, rows[:10]))}{', ...' if rows.size > 10 else ''}, counted from 1 "
                            "after the column header); their samples cannot be given to any channel")
+    df = _seconds(df, path)
     channels = {}
     for name, g in df.groupby("channel", sort=False):
         t = _numbers(g["t_s"], path, name, "t_s")
