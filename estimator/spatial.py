@@ -224,7 +224,8 @@ def odometry_track(odo: Odometry, travel_sign: int, *, max_scale_error: float = 
     for a, b in inconsistent:
         events.append(QCEvent("odometry_inconsistent", "*", float(t[a]), float(t[b]),
                               f"speed and position disagree over {b - a} odometry samples (max "
-                              f"{np.max(np.abs(step[a:b] - expected[a:b])):.3f} m per sample)", "masked",
+                              f"{np.max(np.abs(step[a:b] - expected[a:b])):.3f} m per sample)"
+                              + _unit_ratio(expected[a:b], along[a:b]), "masked",
                               float(min(pos[a], pos[b])), float(max(pos[a], pos[b]))))
         untrusted.append((float(t[a]), float(t[b])))
     for j in unexplained:
@@ -290,6 +291,25 @@ def odometry_track(odo: Odometry, travel_sign: int, *, max_scale_error: float = 
         speed = -speed  # a speed channel signed along chainage: make it positive along the direction of travel
     return OdometryTrack(t=t.copy(), chainage=ch, speed=speed, scale=sc, resets=tuple(rs), events=tuple(events),
                          travel_sign=int(travel_sign), untrusted=tuple(untrusted), scale_source=scale_source)
+
+
+#: speed / position-rate ratios that are a unit mix-up, not a glitch
+_UNIT_RATIOS = {3.6: "km/h read as m/s", 1 / 3.6: "m/s read as km/h", 1000.0: "mm/s read as m/s",
+                1e-3: "m/s read as mm/s"}
+
+
+def _unit_ratio(expected: np.ndarray, along: np.ndarray) -> str:
+    """``"; ..."`` naming a unit mix-up when the speed's distance over a disagreeing stretch is a constant
+    multiple of the position's (:data:`_UNIT_RATIOS`, within 3 %), else ``""``."""
+    moving = np.abs(along) > 1e-6
+    if moving.sum() < 10:
+        return ""
+    r = float(np.median(np.abs(expected[moving]) / np.abs(along[moving])))
+    for ratio, what in _UNIT_RATIOS.items():
+        if abs(r / ratio - 1) < 0.03:
+            return (f"; the speed is {r:.4g} x the position's rate all along: {what}? (check the unit in the file "
+                    "and the sensor table)")
+    return ""
 
 
 def _scale_reference(t: np.ndarray, chainage: np.ndarray, resets) -> tuple[float, float, str]:

@@ -612,6 +612,26 @@ def test_a_channel_shorter_than_the_others_is_masked_where_it_has_no_sample_and_
     assert not [e for e in checked.mask.events if e.kind == "dropout_nan"]  # reported once, as the reading's finding
 
 
+def test_a_speed_channel_ending_before_the_position_is_not_held_at_its_last_value(tmp_path, table, caplog):
+    """Speed in a channel group of its own that stops at 1.5 s while the position goes on to 3 s, braking from
+    10 m/s to a stop at 2.5 s: interpolation held 10 m/s to the end, so the standstill passed the speed gate. Past
+    its span the speed is the position's rate (a 0.2 s central difference: exact on this parabola to 0.05 m/s
+    away from the stop's corner), and the log says so."""
+    ch = _channels()
+    t, _, u = ch["POSITION"]
+    tau = np.clip(t - 1.5, 0.0, 1.0)
+    ch["POSITION"] = (t, np.where(t < 1.5, 100 + 10 * t, 115 + 10 * tau - 5 * tau ** 2), u)
+    ts, vs, us = ch["SPEED"]
+    ch["SPEED"] = (ts[ts < 1.5][::2], vs[ts < 1.5][::2], us)  # another rate too: resampled onto the position's
+    with caplog.at_level(logging.WARNING, logger="estimator"):
+        run = read_run(_write(tmp_path, "speedshort", ch, "parquet"), table)
+    assert re.search(r"speed 'SPEED' covers 0\.000-1\.480 s, position 'POSITION' 0\.000-2\.990 s: the speed outside "
+                     r"its span derived from the position \(\d+ odometry samples\)", caplog.text), caplog.text
+    o = run.odometry
+    np.testing.assert_allclose(np.interp([1.8, 2.0, 2.2], o.t, o.speed), [7.0, 5.0, 3.0], atol=0.05)
+    assert np.all(np.abs(o.speed[o.t > 2.7]) < 1e-9)
+
+
 def test_accelerations_beyond_the_odometry_are_masked_not_given_a_held_chainage(tmp_path, table):
     """Speed and position end at 1.5 s while the accelerations run to 3 s: past the odometry's last sample (and
     one odometry interval) the chainage is not measured, so those samples are masked and the finding says why."""

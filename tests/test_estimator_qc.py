@@ -77,6 +77,20 @@ def test_an_implausible_balise_jump_masks_the_stretch_and_a_jump_without_balise_
     assert (ev.chainage_from, ev.chainage_to) == (pytest.approx(50.0), pytest.approx(352.9, abs=0.01))
 
 
+@pytest.mark.parametrize("factor, what", [(3.6, "km/h read as m/s"), (1 / 3.6, "m/s read as km/h"), (2.0, None)])
+def test_speed_and_position_disagreeing_by_a_unit_factor_say_which(factor, what):
+    """A speed 3.6 x the position's rate all along is km/h read as m/s (a file without a unit label): the finding
+    says so; a factor no unit explains (2) is a disagreement only."""
+    t = np.arange(0, 30, 0.01)
+    pos = 50 + 10 * t
+    tr = odometry_track(Odometry(t, np.full(t.size, 10 * factor), pos, np.zeros(0), np.zeros(0)), +1)
+    (ev,) = [e for e in tr.events if e.kind == "odometry_inconsistent"]
+    if what is None:
+        assert "read as" not in ev.reason
+    else:
+        assert f"the speed is {factor:.4g} x the position's rate all along: {what}?" in ev.reason
+
+
 @pytest.fixture(scope="module")
 def faulty(tmp_path_factory):
     """A run with a NaN dropout, a flat dropout, a clipped channel, standstill and reversing, at known times."""

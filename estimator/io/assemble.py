@@ -375,6 +375,15 @@ def _odometry(raw: RawRecording, sensors: pd.DataFrame, source: str, direction: 
             if sp.t.shape != t.shape or not np.allclose(sp.t, t, rtol=0, atol=1e-9):
                 speed = np.interp(t, sp.t, speed)
                 log.info("%s: speed %r resampled onto the time base of position %r", source, sn, pn)
+                # beyond the speed channel's own span interpolation would hold its end value (a train braking to
+                # a stop would keep its speed, and pass the speed gate): the position's rate takes over there
+                step = float(np.median(np.diff(sp.t)))
+                beyond = (t < sp.t[0] - step) | (t > sp.t[-1] + step)
+                if beyond.any():
+                    speed[beyond] = _speed_from_position(t, position)[beyond]
+                    log.warning("%s: speed %r covers %.3f-%.3f s, position %r %.3f-%.3f s: the speed outside its "
+                                "span derived from the position (%d odometry samples)", source, sn, sp.t[0],
+                                sp.t[-1], pn, t[0], t[-1], int(beyond.sum()))
         else:
             speed = _speed_from_position(t, position)
             names["speed"] = f"derived from {pn}"
