@@ -215,7 +215,7 @@ def auto_exp_decay(test: HammerTest, *, target: float = 1e-4, accepted: np.ndarr
         m = mask[h]
         if not m.any():
             continue
-        r = test.responses[h][m] - test.offsets[1][h, m, None]
+        r = test.responses[h][m]
         e2[m] += np.mean(r[:, early] ** 2, axis=1)
         l2[m] += np.mean(r[:, late] ** 2, axis=1)
     ok = (e2 > 0) & (l2 > 0)
@@ -264,9 +264,8 @@ def _spectra(test: HammerTest, accepted: np.ndarray, band_hz: tuple[float, float
         start, _, end, _ = main_pulse(test.force[h], level)
         w_exp = exponential_window(test.time, float(test.time[start]), decay) if decay > 0 else np.ones(n)
         w_f = w_exp if fwin is None else w_exp * force_window(n, test.fs, start, end, fwin)
-        f_off, a_off = test.offsets[0][h], test.offsets[1][h, m, None]  # as an AC-coupled input (HammerTest.offsets)
-        F = np.fft.rfft((test.force[h] - f_off) * w_f)[idx]
-        A = np.fft.rfft((test.responses[h][m] - a_off) * w_exp, axis=1)[:, idx]
+        F = np.fft.rfft(test.force[h] * w_f)[idx]
+        A = np.fft.rfft(test.responses[h][m] * w_exp, axis=1)[:, idx]
         sff[m] += (F.real ** 2 + F.imag ** 2)[None, :]
         sfa[m] += np.conj(F)[None, :] * A
         saa[m] += A.real ** 2 + A.imag ** 2

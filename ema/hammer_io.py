@@ -55,7 +55,6 @@ not the channel table's force node is logged as a WARNING (the table is used).
 
 from __future__ import annotations
 
-import functools
 import logging
 import os
 import re
@@ -295,19 +294,6 @@ class HammerTest:
     @property
     def channel_names(self) -> tuple[str, ...]:
         return tuple(self.response_channels["name"])
-
-    @functools.cached_property
-    def offsets(self) -> tuple[np.ndarray, np.ndarray]:
-        """The DC offset of every record: ``(force (n_hits,), responses (n_hits, n_ch))``, their medians.
-
-        A DC-coupled accelerometer records gravity or its bias as a constant, which the exponential window turns
-        into a spectrum falling as 1/f across the band, incoherent with the force. The median is the record's
-        rest value whatever the pre-trigger: the hammer pulse occupies a few samples of the force record and an
-        impact response oscillates about its rest value (a mean would take in the pulse's impulse). The records
-        stay as read; the spectra (:mod:`ema.estimate`) and the level checks (:mod:`ema.screening`) subtract
-        these, as an AC-coupled input would.
-        """
-        return np.median(self.force, axis=1), np.median(self.responses, axis=2)
 
     def __repr__(self) -> str:
         return (
