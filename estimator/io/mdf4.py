@@ -13,6 +13,7 @@ import gc
 import logging
 import sys
 import xml.etree.ElementTree as ET
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -182,7 +183,7 @@ def _same(a: RawChannel, b: RawChannel) -> bool:
 
 def _copy_labels(name: str, keys: list[tuple[int, int]]) -> dict[tuple[int, int], str]:
     """``NAME@GROUP`` per copy, ``NAME@GROUP.INDEX`` for the copies of a group that holds several."""
-    per_group = {g: sum(1 for k, _ in keys if k == g) for g, _ in keys}
+    per_group = Counter(g for g, _ in keys)
     return {(g, i): f"{name}@{g}" if per_group[g] == 1 else f"{name}@{g}.{i}" for g, i in keys}
 
 
