@@ -169,6 +169,31 @@ def _pulses(test: HammerTest, level: float) -> list[tuple[int, int, int, float]]
     return [main_pulse(test.force[h], level) for h in range(test.n_hits)]
 
 
+#: the fewest pre-trigger samples a rest value is taken from; with fewer the record is taken about zero
+MIN_PRETRIGGER_SAMPLES = 16
+
+
+def rest_values(test: HammerTest, level: float = 0.05) -> tuple[np.ndarray, np.ndarray]:
+    """The rest value of every record, from its pre-trigger: ``(force (n_hits,), responses (n_hits, n_ch))``.
+
+    A DC-coupled accelerometer records gravity or its bias as a constant, which the exponential window turns into
+    a spectrum falling as 1/f across the band, incoherent with the force. The spectra (:func:`_spectra`), the decay
+    estimate and the level checks (:mod:`ema.screening`) take each record about its rest value, as an AC-coupled
+    input would; the records stay as read. The rest value is the median of the samples before the main pulse, ending
+    one pulse width before its start (:func:`main_pulse`): before the hit the structure is at rest, whereas over the
+    whole record a slow rig swing or a response not yet decayed moves the median off the rest value. A hit with
+    fewer than :data:`MIN_PRETRIGGER_SAMPLES` such samples is taken about zero.
+    """
+    f_rest = np.zeros(test.n_hits)
+    a_rest = np.zeros((test.n_hits, test.n_channels))
+    for h, (start, _, end, _) in enumerate(_pulses(test, level)):
+        stop = start - (end - start + 1)
+        if stop >= MIN_PRETRIGGER_SAMPLES:
+            f_rest[h] = np.median(test.force[h, :stop])
+            a_rest[h] = np.median(test.responses[h][:, :stop], axis=1)
+    return f_rest, a_rest
+
+
 def auto_exp_decay(test: HammerTest, *, target: float = 1e-4, accepted: np.ndarray | None = None,
                    level: float = 0.05) -> float:
     """Exponential-window decay making the slowest response fall to ``target`` by the record end.
@@ -211,11 +236,12 @@ def auto_exp_decay(test: HammerTest, *, target: float = 1e-4, accepted: np.ndarr
         return float(np.log(1 / target) / T)
     e2 = np.zeros(test.n_channels)
     l2 = np.zeros(test.n_channels)
+    rest = rest_values(test, level)[1]
     for h in range(test.n_hits):
         m = mask[h]
         if not m.any():
             continue
-        r = test.responses[h][m]
+        r = test.responses[h][m] - rest[h, m, None]
         e2[m] += np.mean(r[:, early] ** 2, axis=1)
         l2[m] += np.mean(r[:, late] ** 2, axis=1)
     ok = (e2 > 0) & (l2 > 0)
@@ -257,6 +283,7 @@ def _spectra(test: HammerTest, accepted: np.ndarray, band_hz: tuple[float, float
     saa = np.zeros((nch, nf))
     level = fwin.level if fwin is not None else 0.05
     n = test.n_samples
+    f_rest, a_rest = rest_values(test, level)
     for h in range(test.n_hits):
         m = accepted[h]
         if not m.any():
@@ -264,8 +291,8 @@ def _spectra(test: HammerTest, accepted: np.ndarray, band_hz: tuple[float, float
         start, _, end, _ = main_pulse(test.force[h], level)
         w_exp = exponential_window(test.time, float(test.time[start]), decay) if decay > 0 else np.ones(n)
         w_f = w_exp if fwin is None else w_exp * force_window(n, test.fs, start, end, fwin)
-        F = np.fft.rfft(test.force[h] * w_f)[idx]
-        A = np.fft.rfft(test.responses[h][m] * w_exp, axis=1)[:, idx]
+        F = np.fft.rfft((test.force[h] - f_rest[h]) * w_f)[idx]
+        A = np.fft.rfft((test.responses[h][m] - a_rest[h, m, None]) * w_exp, axis=1)[:, idx]
         sff[m] += (F.real ** 2 + F.imag ** 2)[None, :]
         sfa[m] += np.conj(F)[None, :] * A
         saa[m] += A.real ** 2 + A.imag ** 2

@@ -24,6 +24,14 @@ Checks (thresholds in :class:`ScreeningConfig`):
     this is a corrupt sample, e.g. a flipped byte or a wrong byte order), or
     more than ``max_energy_outside`` of the force record's energy lies
     outside the force window around the main pulse (not an impact record).
+``pulse too late`` (whole hit)
+    The record left after the force pulse is shorter than
+    ``min_record_after_share`` x its median over the plausible hits (a late
+    trigger, a pre-trigger set wrongly for one hit). The exponential window is
+    chosen for the median hit, whose slowest response falls to 1e-4 by the
+    record end; a hit with the share ``s`` of that record keeps ``1e-4 ** s``
+    there (1e-3 at 3/4), and its leakage would lower every channel's
+    coherence, so the channels, not the hit, would be rejected.
 ``force too weak`` (whole hit)
     Peak force below ``weak_force_ratio`` x the median peak of the plausible
     hits that are not too strong, or below ``min_force_snr`` x the force
@@ -69,7 +77,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from .estimate import ForceWindow, _spectra, auto_exp_decay, main_pulse
+from .estimate import ForceWindow, _spectra, auto_exp_decay, main_pulse, rest_values
 from .estimate import force_window as _pulse_window
 from .hammer_io import HammerTest
 
@@ -78,8 +86,8 @@ __all__ = ["ScreeningConfig", "Rejection", "Screening", "screen_hits", "REASONS"
 log = logging.getLogger("ema")
 
 #: The reasons a rejection can have.
-REASONS = ("double hit", "force saturated", "force not a pulse", "force too weak", "force too strong", "dead channel",
-           "clipped", "level inconsistent", "level off its neighbours", "low coherence")
+REASONS = ("double hit", "force saturated", "force not a pulse", "pulse too late", "force too weak", "force too strong",
+           "dead channel", "clipped", "level inconsistent", "level off its neighbours", "low coherence")
 
 
 @dataclass(frozen=True)
@@ -100,6 +108,8 @@ class ScreeningConfig:
         A peak force above this multiple of the median peak is too strong.
     max_energy_outside : float
         Largest fraction of the force energy outside the main pulse's window.
+    min_record_after_share : float
+        Shortest record after the pulse, as a share of its median over the hits.
     max_level_spread : float
         Largest factor between a channel's level per unit force in one hit and its median over the hits.
     max_neighbour_ratio : float
@@ -124,6 +134,7 @@ class ScreeningConfig:
     weak_force_ratio: float = 0.2
     strong_force_ratio: float = 10.0
     max_energy_outside: float = 0.5
+    min_record_after_share: float = 0.75
     max_level_spread: float = 10.0
     max_neighbour_ratio: float = 100.0
     n_neighbours: int = 4
@@ -141,7 +152,7 @@ class ScreeningConfig:
         if int(self.n_neighbours) != self.n_neighbours or self.n_neighbours < 1:
             raise ValueError(f"ScreeningConfig.n_neighbours must be an integer >= 1, got {self.n_neighbours!r}")
         for name in ("pulse_level", "double_hit_level", "weak_force_ratio", "min_coherence",
-                     "max_low_coherence_fraction", "max_energy_outside"):
+                     "max_low_coherence_fraction", "max_energy_outside", "min_record_after_share"):
             v = getattr(self, name)
             if not 0 <= v <= 1:
                 raise ValueError(f"ScreeningConfig.{name} must be in [0, 1], got {v!r}")
@@ -285,11 +296,31 @@ def _nearest_sensors(channels: pd.DataFrame, k: int) -> list[np.ndarray]:
     return out
 
 
-def _check_levels(test: HammerTest, cfg: ScreeningConfig, accepted: np.ndarray, pulse_rms: np.ndarray, reject) -> None:
+#: a record offset above this share of its RMS about the offset is named (a DC-coupled sensor, gravity)
+OFFSET_WARN_SHARE = 0.1
+
+
+def _report_offsets(test: HammerTest, off: np.ndarray) -> None:
+    """A WARNING naming the channels whose DC offset ``off (n_hits, n_ch)`` (:func:`ema.estimate.rest_values`)
+    exceeds :data:`OFFSET_WARN_SHARE` of the record's RMS about it in any hit; the spectra are taken about it."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        share = np.abs(off) / np.sqrt(np.mean(np.square(test.responses - off[:, :, None]), axis=2))
+    big = np.flatnonzero(np.any(share > OFFSET_WARN_SHARE, axis=0))
+    if big.size:
+        names = test.channel_names
+        log.warning("screening %s: %d channel(s) carry a DC offset (median over the hits, m/s^2): %s; a DC-coupled "
+                    "accelerometer (gravity) or a bias; the spectra and levels are taken about it", test.source
+                    or "hammer test", big.size, ", ".join(f"{names[j]} {np.median(off[:, j]):+.4g}" for j in big[:10])
+                    + (f" and {big.size - 10} more" if big.size > 10 else ""))
+
+
+def _check_levels(test: HammerTest, cfg: ScreeningConfig, accepted: np.ndarray, pulse_rms: np.ndarray,
+                  rest: np.ndarray, reject) -> None:
     """The level checks of :func:`screen_hits` (``level inconsistent``, ``level off its neighbours``); edits ``accepted``."""
     names = test.channel_names
     with np.errstate(over="ignore", invalid="ignore"):
-        level = np.sqrt(np.mean(np.square(test.responses), axis=2))  # (hits, channels) RMS [m/s^2]
+        # (hits, channels) RMS [m/s^2] about each record's rest value (ema.estimate.rest_values)
+        level = np.sqrt(np.mean(np.square(test.responses - rest[:, :, None]), axis=2))
     hit_ok = accepted.any(axis=1) & (pulse_rms > 0)
     # per unit force, the same channel from hit to hit (a linear structure, one hammer point)
     if hit_ok.sum() >= 3:
@@ -396,6 +427,17 @@ def screen_hits(
         if not plausible[h]:
             accepted[h] = False
 
+    # ---- the record after the pulse (whole hits), against the plausible hits' median
+    after = test.time[-1] - test.time[[p[0] for p in pulses]]
+    if plausible.any():
+        median_after = float(np.median(after[plausible]))
+        for h in np.flatnonzero(plausible & (after < cfg.min_record_after_share * median_after)):
+            reject(test.hits[h], None, "pulse too late",
+                   f"the force pulse at t = {test.time[pulses[h][0]]:.4g} s leaves {after[h]:.3g} s of the record, "
+                   f"the other hits' median {median_after:.3g} s (limit {cfg.min_record_after_share:g} x): the "
+                   "response is cut before the exponential window has taken it down (a late trigger?)")
+            plausible[h] = accepted[h] = False
+
     # ---- force checks (whole hits); sizes against the median peak of the plausible hits, the weak test
     # against the hits that are not too strong (one corrupt giant must not make every other hit "weak")
     median_all = float(np.median(peaks[plausible])) if plausible.any() else 0.0
@@ -451,8 +493,12 @@ def screen_hits(
                                           f"(ADC range reached)")
                 accepted[h, j] = False
 
+    # ---- DC offsets (named, not rejected: the spectra and levels are taken about them)
+    rest = rest_values(test, cfg.pulse_level)[1]
+    _report_offsets(test, rest)
+
     # ---- levels: per unit force across hits, and against the neighbouring sensors
-    _check_levels(test, cfg, accepted, pulse_rms, reject)
+    _check_levels(test, cfg, accepted, pulse_rms, rest, reject)
 
     # ---- coherence after averaging (per channel)
     if cfg.check_coherence:

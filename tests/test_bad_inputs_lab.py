@@ -125,6 +125,48 @@ def test_case1_force_plausibility_checks_fire_on_their_fault_only(small, fault, 
     np.testing.assert_array_equal(scr.accepted.all(axis=1), [True, False, True, True])
 
 
+def test_case1_a_late_triggered_hit_is_rejected_as_a_hit_not_through_its_channels(small):
+    """Hit 2 recorded with its pulse at 0.8 s of the 1 s record (a late trigger; the other hits at 0.1 s): its
+    response is cut before the exponential window takes it down, and its leakage once lowered every channel's
+    coherence until channels, not the hit, were rejected. Now that hit alone is, by its own reason."""
+    folder, _ = small
+    test = ema.read_hammer(folder / "flexural.uff", folder / "flexural_channels.csv")
+    start = ema.estimate.main_pulse(test.force[1])[0]
+    shift = int(0.8 * test.fs) - start
+    force, resp = test.force.copy(), test.responses.copy()
+    force[1], resp[1] = np.roll(force[1], shift), np.roll(resp[1], shift, axis=-1)
+    force[1, :shift], resp[1, :, :shift] = force[1, shift], resp[1, :, shift:shift + 1]  # quiet pre-trigger
+    bad = ema.HammerTest.from_arrays(force, resp, test.fs, test.channels, hit_numbers=test.hits, source="synthetic")
+    scr = ema.screen_hits(bad, band_hz=(60.0, 300.0))
+    assert [(r.hit, r.channel, r.reason) for r in scr.rejections] == [(2, None, "pulse too late")], scr.rejections
+    assert re.search(r"pulse at t = 0\.8\d* s leaves 0\.2 s of the record, the other hits' median 0\.899 s",
+                     scr.rejections[0].detail), scr.rejections[0].detail
+    np.testing.assert_array_equal(scr.accepted.all(axis=1), [True, False, True, True])
+
+
+def test_case1_a_dc_offset_on_the_accelerometers_is_removed_and_named(small, tmp_path, capsys, caplog):
+    """DC-coupled accelerometers record gravity: +9.81 m/s^2 on every response channel of the small campaign.
+    The exponential window turns a constant into a 1/f spectrum incoherent with the force: half the channels were
+    rejected for low coherence. The spectra and levels are taken about each record's offset (the channels named in a
+    warning), and the modes are the clean campaign's."""
+    folder, clean_modes = small
+    raw = bytearray((folder / "flexural.uff").read_bytes())
+    force_node = int(pd.read_csv(folder / "flexural_channels.csv").query("quantity == 'force'")["node"].iloc[0])
+    for d in datasets58(bytes(raw)):
+        if d.node != force_node:
+            x = np.frombuffer(bytes(raw[d.data:d.data + d.n_bytes]), "<f4") + np.float32(9.81)
+            raw[d.data:d.data + d.n_bytes] = x.astype("<f4").tobytes()
+    bad = copy_campaign(folder, tmp_path / "bad", names=("flexural_channels.csv",))
+    (bad / "flexural.uff").write_bytes(bytes(raw))
+    with caplog.at_level("WARNING", logger="ema"):
+        code, out, err = identify_small(bad, tmp_path / "modes", capsys)
+    assert code == 0, err
+    assert re.search(r"flexural.uff: 8 channel\(s\) carry a DC offset \(median over the hits, m/s\^2\): "
+                     r"\w+ \+9\.81", caplog.text), caplog.text
+    assert "rejected" not in out, out
+    assert same_modes(modes_csv(tmp_path / "modes"), clean_modes)
+
+
 # ------------------------------------------------------------------ case 2: one channel 1e6 x too large
 @pytest.mark.slow
 def test_case2_a_channel_a_million_times_too_large_is_rejected(control, clean_flexural, tmp_path, capsys):
