@@ -300,11 +300,12 @@ def _nearest_sensors(channels: pd.DataFrame, k: int) -> list[np.ndarray]:
 OFFSET_WARN_SHARE = 0.1
 
 
-def _report_offsets(test: HammerTest, off: np.ndarray) -> None:
+def _report_offsets(test: HammerTest, off: np.ndarray, level: np.ndarray) -> None:
     """A WARNING naming the channels whose DC offset ``off (n_hits, n_ch)`` (:func:`ema.estimate.rest_values`)
-    exceeds :data:`OFFSET_WARN_SHARE` of the record's RMS about it in any hit; the spectra are taken about it."""
+    exceeds :data:`OFFSET_WARN_SHARE` of the record's RMS ``level`` about it in any hit; the spectra are taken
+    about it."""
     with np.errstate(divide="ignore", invalid="ignore"):
-        share = np.abs(off) / np.sqrt(np.mean(np.square(test.responses - off[:, :, None]), axis=2))
+        share = np.abs(off) / level
     big = np.flatnonzero(np.any(share > OFFSET_WARN_SHARE, axis=0))
     if big.size:
         names = test.channel_names
@@ -315,12 +316,10 @@ def _report_offsets(test: HammerTest, off: np.ndarray) -> None:
 
 
 def _check_levels(test: HammerTest, cfg: ScreeningConfig, accepted: np.ndarray, pulse_rms: np.ndarray,
-                  rest: np.ndarray, reject) -> None:
-    """The level checks of :func:`screen_hits` (``level inconsistent``, ``level off its neighbours``); edits ``accepted``."""
+                  level: np.ndarray, reject) -> None:
+    """The level checks of :func:`screen_hits` (``level inconsistent``, ``level off its neighbours``) on ``level``
+    (hits, channels), each record's RMS about its rest value [m/s^2]; edits ``accepted``."""
     names = test.channel_names
-    with np.errstate(over="ignore", invalid="ignore"):
-        # (hits, channels) RMS [m/s^2] about each record's rest value (ema.estimate.rest_values)
-        level = np.sqrt(np.mean(np.square(test.responses - rest[:, :, None]), axis=2))
     hit_ok = accepted.any(axis=1) & (pulse_rms > 0)
     # per unit force, the same channel from hit to hit (a linear structure, one hammer point)
     if hit_ok.sum() >= 3:
@@ -495,10 +494,12 @@ def screen_hits(
 
     # ---- DC offsets (named, not rejected: the spectra and levels are taken about them)
     rest = rest_values(test, cfg.pulse_level)[1]
-    _report_offsets(test, rest)
+    with np.errstate(over="ignore", invalid="ignore"):
+        level = np.sqrt(np.mean(np.square(test.responses - rest[:, :, None]), axis=2))
+    _report_offsets(test, rest, level)
 
     # ---- levels: per unit force across hits, and against the neighbouring sensors
-    _check_levels(test, cfg, accepted, pulse_rms, rest, reject)
+    _check_levels(test, cfg, accepted, pulse_rms, level, reject)
 
     # ---- coherence after averaging (per channel)
     if cfg.check_coherence:
