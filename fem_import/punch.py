@@ -21,7 +21,9 @@ are skipped with a logged note.  The eigenvalue is ``lambda = omega**2``
 [(rad/s)**2], so ``f = sqrt(max(lambda, 0)) / (2 pi)`` (rigid-body modes
 come out with tiny negative eigenvalues, hence 0 Hz).  Other result blocks
 (``$DISPLACEMENTS``, ``$SPCF``, element output...) are skipped; complex
-output is refused.  Nastran punches eigenvectors in the displacement
+output is refused, and so is SORT2 output (eigenvectors sorted by point: a
+``$POINT ID`` card per grid, then one card pair per mode) with the SORT1
+request that replaces it.  Nastran punches eigenvectors in the displacement
 coordinate system of each grid (CD); the bulk deck merged as geometry says
 which (:mod:`fem_import.nastran_coords`), and :func:`fem_import.merge_geometry`
 rotates them to the basic system.
@@ -153,6 +155,11 @@ def _parse(path: str, lines: list[str], ends_with_newline: bool = True) -> list[
                                           "output) are not supported; expected $REAL OUTPUT", line=line_no)
                     current = _Mode(number, lam, subcase, line_no)
                     modes.append(current)
+            elif key == "POINT ID" and block == "EIGENVECTOR":
+                # SORT2 sorts by point: a '$POINT ID' card, then one card pair per mode, keyed by mode number
+                raise FEReadError(path, "eigenvectors sorted by point (SORT2: a '$POINT ID =' card per grid) are "
+                                  "not read; request SORT1 output in the case control (DISPLACEMENT(PUNCH,SORT1) = "
+                                  "ALL) and run the export again", line=line_no)
             elif key in _MODIFIERS:
                 pass
             else:

@@ -156,6 +156,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     import matplotlib.pyplot as plt
 
     import ema
+    from ema.driving_point import driving_point_checks, driving_point_findings
     from ema.modes_io import write_modeset
     from ema.plot import plot_stabilisation, plot_synthesis
 
@@ -172,6 +173,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         frf = ema.read_frf_uff(frfs[0], table, exp_window_decay=args.window_decay)
         frf = frf.as_quantity("accelerance").select(band_hz=band)
         screening = None
+        full_table = table
         named = "setup" in table and table["setup"].notna().any()
         setup = args.setup or (str(table["setup"].dropna().iloc[0]) if named else Path(frfs[0]).stem)
     else:
@@ -182,10 +184,13 @@ def _cmd_identify(args: argparse.Namespace) -> int:
              f"estimating H1 in {band[0]:g}-{band[1]:g} Hz")
         screening = ema.screen_hits(test, band_hz=band)
         frf = ema.estimate_frf(test, band_hz=band, screening=screening)
+        full_table = test.channels
         setup = args.setup or _setup_name(test, Path(hammers[0]))
     step(f"identifying (LSCE to order {args.max_order}, automatic pole selection, LSFD)")
     result = ema.identify(frf, band_hz=band, max_order=args.max_order, setup=setup)
     modes = result.modes
+    for finding in driving_point_findings(driving_point_checks(modes, full_table), source=setup):
+        logging.getLogger("ema").warning("%s", finding)
     with staged_output(out) as tmp:  # write last: --out gets the results only when everything succeeded
         write_modeset(modes, tmp)
         fig = plot_stabilisation(result.diagram, frf=frf)

@@ -215,6 +215,18 @@ def test_punch_skips_scalar_points_and_other_blocks(tmp_path, caplog):
     assert "scalar-point" in caplog.text and "DISPLACEMENTS" in caplog.text
 
 
+def test_punch_sorted_by_point_is_refused_with_the_request_to_change(tmp_path):
+    """SORT2 (one '$POINT ID' card per grid, then a card pair per mode) is named with the SORT1 request, not read
+    as grid cards keyed by mode numbers."""
+    lines = _punch_lines(tmp_path)
+    k = next(i for i, ln in enumerate(lines) if ln.startswith("$EIGENVALUE"))
+    sort2 = lines[:k] + [f"{'$POINT ID =          11  IDENTIFIED BY MODE':<72}{k + 1:8d}\n"]
+    sort2 += [f"{m:10d}       G{0.1 * m:18.6E}{0.0:18.6E}{0.0:18.6E}\n" f"-CONT-{'':12}{0.0:18.6E}{0.0:18.6E}{0.0:18.6E}\n"
+              for m in (1, 2, 3)]
+    with pytest.raises(FEReadError, match=rf"s2\.pch, line {k + 1}: .*SORT2.*DISPLACEMENT\(PUNCH,SORT1\)"):
+        fem_import.read(_write(tmp_path, "s2.pch", sort2))
+
+
 def test_punch_truncated_card_names_line(tmp_path):
     lines = _punch_lines(tmp_path)
     path = tmp_path / "cut.pch"

@@ -250,6 +250,7 @@ def _read_setup(s: SetupFiles, table, name: str, band, max_order: int, n_average
     from dataclasses import replace
 
     import ema
+    from ema.driving_point import driving_point_checks, driving_point_findings
     from receptance.diagnosis.misfit import Measurement, check_band_lines
     from receptance.diagnosis.noise import estimate_averages, frf_noise_variance
 
@@ -316,8 +317,13 @@ def _read_setup(s: SetupFiles, table, name: str, band, max_order: int, n_average
                  "exp_window_decay": float(frf.exp_window_decay), "n_modes": len(result.modes),
                  "modes": [{"f_hz": float(f), "zeta": float(z), "mpc": float(m)}
                            for f, z, m in zip(result.modes.freqs_hz, result.modes.zeta, result.modes.mpc)]})
-    meas = Measurement(frf, table if frame is None else frame.table(table), name, noise_variance=noise_var,
-                       noise_method=method)
+    framed = table if frame is None else frame.table(table)
+    checks = driving_point_checks(result.modes, framed)
+    for finding in driving_point_findings(checks, source=f"setup {name!r} ({s.label})"):
+        log.warning("%s", finding)
+    info["driving_points"] = [{"channel": c.channel, "verdict": c.verdict, "wrong_share": c.wrong_share if np.isfinite(c.wrong_share) else None}
+                              for c in checks]
+    meas = Measurement(frf, framed, name, noise_variance=noise_var, noise_method=method)
     info["noise_floor_method"] = meas.noise_method
     say(f"{name}: {len(result.modes)} modes identified")
     return meas, result, frf, info
