@@ -232,7 +232,8 @@ def check_run(run: Run, track: OdometryTrack, config: EstimatorConfig = Estimato
     run_mask = still | slow | reverse | untrusted
     masked |= run_mask[None, :]
     saturated &= ~run_mask[None, :]
-    for e in events:
+    # the reading logged its own findings (rejected channels, time gaps) when it made them
+    for e in events[len(run.rejected):]:
         if e.action in ("masked", "rejected"):
             log.warning("%s: %s", run.source, e.describe())
     mask = QCMask(masked, tuple(events), saturated)

@@ -291,11 +291,14 @@ def test_samples_the_logger_lost_are_nan_masked_and_reported_not_interpolated(tm
     assert (ev.t_start, ev.t_end) == (pytest.approx(1.000), pytest.approx(1.049))
     assert (ev.chainage_from, ev.chainage_to) == (pytest.approx(110.0), pytest.approx(110.49))
     assert "time_gap [ACC_W1L_Z]" in caplog.text and "1 time-stamp gap" in run.processing[0]
-    # quality control masks them and reports them once, as the gap (not again as a NaN dropout)
+    # quality control masks them and reports them once, as the gap (not again as a NaN dropout), and does not log
+    # the reading's finding a second time
+    caplog.clear()
     checked = check_run(run, odometry_track(run.odometry, +1))
     assert checked.mask.masked[i, 1000:1050].all() and not checked.mask.masked[i, :900].any()
     kinds = [e.kind for e in checked.mask.events if e.channel == "ACC_W1L_Z"]
     assert kinds == ["time_gap"]
+    assert "time_gap" not in caplog.text
 
 
 def test_a_channel_resuming_off_its_sampling_grid_is_an_error(tmp_path, table):
@@ -326,8 +329,22 @@ def test_time_stamps_of_a_loggers_clock_resolution_are_a_grid_and_jitter_is_not(
     assert read_run(_write(tmp_path, "slow", slow, "parquet"), table).n_samples == 3000
     t, v, u = ch["ACC_W1L_Z"]
     ch["ACC_W1L_Z"] = (t + np.random.default_rng(1).uniform(-0.2, 0.2, t.size) / 1024.0, v, u)
-    with pytest.raises(ChannelError, match="'ACC_W1L_Z' is not evenly sampled"):
+    with pytest.raises(ChannelError, match="'ACC_W1L_Z' is not evenly sampled") as info:
         read_run(_write(tmp_path, "jitter", ch, "parquet"), table)
+    assert "float32" not in str(info.value)
+
+
+def test_a_float32_master_is_named_as_the_cause_of_an_uneven_time_base(tmp_path, table):
+    """An MDF 4 whose time stamps are single precision, 299-302 s into a recording at 1 kHz: resolved to 31 µs
+    there (3 % of an interval), the time base is off its grid; the refusal says why and what to write instead."""
+    ch = {k: ((299.0 + t).astype(np.float32), v, u) for k, (t, v, u) in _channels().items()}
+    with pytest.raises(ChannelError, match=r"'ACC_W1L_Z' is not evenly sampled .*single-precision \(float32\) "
+                                           r"number, resolved to 3.05e-05 s at t = (299|30[01])\.\d+ s \(3.1 % of the "
+                                           r"interval\): write the master channel as float64"):
+        read_run(_write(tmp_path, "f32", ch, "mdf4"), table)
+    # the same stamps in double precision are one grid
+    ch = {k: (299.0 + t, v, u) for k, (t, v, u) in _channels().items()}
+    assert read_run(_write(tmp_path, "f64", ch, "mdf4"), table).n_samples == 3000
 
 
 @pytest.mark.parametrize("lost, action", [(5, "corrected"), (60, "masked")])
@@ -808,6 +825,42 @@ def test_a_wide_csv_as_daq_software_writes_it(tmp_path):
     bad.write_text("time [s],ACC_W1L_Z [g],ACC_W1L_Z [g]\n0.0,0.1,0.3\n")
     with pytest.raises(RunFileError, match=r"channel 'ACC_W1L_Z' is given by two columns"):
         read_raw(bad)
+
+def test_a_wide_csv_with_a_daq_programs_preamble(tmp_path):
+    """Plain-text lines before the column header (a program name, a start time, a blank line, a two-field row) are
+    the run header: read as such, with the samples as without them; a conflicting key, or no column header within
+    the preamble limit, is refused by name. Before, the long-table reader took the file and gave pandas'
+    tokenizer message."""
+    from estimator.io.registry import read_raw
+    from estimator.io.wide import MAX_PREAMBLE_LINES
+
+    table = "time [s],ACC_W1L_Z [g],SPEED [km/h]\n0.000,0.5,36\n0.001,-0.25,\n0.002,0.125,37.5\n"
+    p = tmp_path / "pre.csv"
+    p.write_text("# run_id = p1\nDEWESoft X3 export\nStart time: 2024-03-04 10:00:00\n\nOperator,J. Doe\n"
+                 "vehicle = 501\n" + table)
+    raw, fmt = read_raw(p)
+    assert fmt == "csv-wide"
+    assert raw.header == {"run_id": "p1", "Start time": "2024-03-04 10:00:00", "Operator": "J. Doe",
+                          "vehicle": "501", "preamble": "DEWESoft X3 export"}
+    (tmp_path / "plain.csv").write_text(table)
+    plain, _ = read_raw(tmp_path / "plain.csv")
+    for k in plain.channels:
+        np.testing.assert_array_equal(raw.channels[k].t, plain.channels[k].t)
+        np.testing.assert_array_equal(raw.channels[k].values, plain.channels[k].values)
+    # a cut row is still named by its line in the file
+    p.write_text("DEWESoft X3 export\n\n" + table + "0.003\n")
+    with pytest.raises(RunFileError, match=r"data row 4 \(line 7\) has 1 field\(s\)"):
+        read_raw(p)
+    p.write_text("# vehicle = 501\nvehicle: 502\n" + table)
+    with pytest.raises(RunFileError, match=r"header key 'vehicle' is given twice \('501', then '502'\)"):
+        read_raw(p)
+    p.write_text("".join(f"line {k}\n" for k in range(MAX_PREAMBLE_LINES + 1)) + table)
+    with pytest.raises(RunFileError, match=r"pre.csv: no column header starting with a time column .* in the 40"):
+        read_raw(p, format="csv-wide")
+    with pytest.raises(RunFileError, match=r"pre.csv: not a readable CSV run table: neither a long table .* nor a "
+                                           r"wide one"):
+        read_raw(p)
+
 
 def test_a_run_estimated_from_a_wide_csv_equals_its_mdf4(tmp_path):
     """The synthetic run written as MDF 4 and converted to a wide CSV (every channel at its own rate, 17 digits)

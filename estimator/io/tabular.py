@@ -152,7 +152,9 @@ def read_csv(path: Path) -> RawRecording:
         df = pd.read_csv(path, skiprows=skip, encoding="utf-8-sig", dtype={"channel": str, "unit": str},
                          low_memory=False)
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
-        raise RunFileError(f"{path}: not a readable CSV run table ({exc})") from None
+        raise RunFileError(f"{path}: not a readable CSV run table: neither a long table (columns channel, t_s, "
+                           f"value, unit) nor a wide one (a column header starting with a time column within the "
+                           f"first lines); pandas: {str(exc).strip()}") from None
     df.columns = [str(c).strip() for c in df.columns]
     return _from_frame(df, header, path)
 

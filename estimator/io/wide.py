@@ -16,6 +16,10 @@ Layout (``# key = value`` run-header lines first, as in the long CSV of :mod:`es
   masked by quality control). Any other text is refused, naming the row and column.
 * Separator ``,``, ``;`` or tab, sniffed from the column header; with ``;`` a decimal comma is accepted
   (``0,0123``), as spreadsheets in much of Europe write it.
+* Plain-text lines before the column header (a DAQ program's preamble: its name, the start time, a comment),
+  up to :data:`MAX_PREAMBLE_LINES` of them, are the run header too: ``key: value``, ``key = value`` or a row of
+  two fields gives ``key``; any other line is kept under ``preamble``. The column header is the first line whose
+  first field is a time column's name.
 """
 
 from __future__ import annotations
@@ -31,10 +35,13 @@ from estimator.errors import RunFileError
 from estimator.io.registry import RawChannel, RawRecording
 from estimator.io.tabular import NAN_WORDS, read_csv_header
 
-__all__ = ["sniff_wide_csv", "read_wide_csv", "write_wide_csv", "TIME_NAMES"]
+__all__ = ["sniff_wide_csv", "read_wide_csv", "write_wide_csv", "TIME_NAMES", "MAX_PREAMBLE_LINES"]
 
 TIME_NAMES = ("t", "t_s", "time", "zeit")
 _TIME_UNITS = {"": 1.0, "s": 1.0, "sec": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6}
+#: plain-text lines looked through for the column header (a DAQ program's preamble is a few lines)
+MAX_PREAMBLE_LINES = 40
+_KEY_VALUE = re.compile(r"^\s*(?P<key>[^:=]*?[^:=\s])\s*[:=]\s*(?P<value>.*?)\s*$")
 _HEAD = re.compile(r"^\s*(?P<name>.*?)\s*(?:[\[(]\s*(?P<unit>[^\])]*?)\s*[\])])?\s*$")
 
 
@@ -43,13 +50,24 @@ def _name_unit(column: str) -> tuple[str, str]:
     return (m.group("name"), m.group("unit") or "") if m else (str(column).strip(), "")
 
 
-def _first_line(text: str) -> str | None:
-    return next((ln for ln in text.splitlines() if ln.strip() and not ln.startswith("#")), None)
-
-
 def _separator(line: str) -> str:
     counts = {sep: line.count(sep) for sep in (",", ";", "\t")}
     return max(counts, key=counts.get)
+
+
+def _is_column_header(line: str) -> bool:
+    cols = next(csv.reader([line], delimiter=_separator(line)), [])
+    return len(cols) >= 2 and _name_unit(cols[0])[0].lower() in TIME_NAMES and "channel" not in cols
+
+
+def _preamble(lines) -> int | None:
+    """Index of the column header among the plain lines after the ``#`` header (None: not within the limit)."""
+    for k, line in enumerate(lines):
+        if k >= MAX_PREAMBLE_LINES:
+            return None
+        if _is_column_header(line.rstrip("\r\n")):
+            return k
+    return None
 
 
 def sniff_wide_csv(path: Path, head: bytes) -> bool:
@@ -57,11 +75,34 @@ def sniff_wide_csv(path: Path, head: bytes) -> bool:
         text = head.decode("utf-8-sig")
     except UnicodeDecodeError:
         return False
-    line = _first_line(text)
-    if line is None:
-        return False
-    cols = next(csv.reader([line], delimiter=_separator(line)))
-    return len(cols) >= 2 and _name_unit(cols[0])[0].lower() in TIME_NAMES and "channel" not in cols
+    lines = [ln for ln in text.splitlines() if not ln.startswith("#")]
+    # the last line of the head may be cut: only whole lines decide
+    return _preamble(lines[:-1] if len(head) == 4096 else lines) is not None
+
+
+def _preamble_header(path: Path, lines: list[str], header: dict[str, str]) -> dict[str, str]:
+    """The run header with the preamble's lines: ``key: value`` / ``key = value`` / two fields, the rest kept as
+    ``preamble``; a key given twice with two values is refused, as in the ``#`` header."""
+    out, free = dict(header), []
+    for line in (ln.strip() for ln in lines):
+        if not line:
+            continue
+        m = _KEY_VALUE.match(line)
+        fields = next(csv.reader([line], delimiter=_separator(line)), [])
+        if m is not None:
+            k, v = m.group("key"), m.group("value")
+        elif len(fields) == 2 and fields[0].strip():
+            k, v = fields[0].strip(), fields[1].strip()
+        else:
+            free.append(line)
+            continue
+        if k in out and out[k] != v:
+            raise RunFileError(f"{path}: header key {k!r} is given twice ({out[k]!r}, then {v!r}); which one holds "
+                               "cannot be told")
+        out[k] = v
+    if free:
+        out["preamble"] = " | ".join(free)
+    return out
 
 
 def read_wide_csv(path: Path) -> RawRecording:
@@ -69,7 +110,15 @@ def read_wide_csv(path: Path) -> RawRecording:
     with open(path, encoding="utf-8-sig") as fh:
         for _ in range(skip):
             fh.readline()
-        first = fh.readline()
+        plain = [fh.readline() for _ in range(MAX_PREAMBLE_LINES + 1)]
+    k = _preamble(plain)
+    if k is None:
+        raise RunFileError(f"{path}: no column header starting with a time column ({', '.join(TIME_NAMES)}) in the "
+                           f"{MAX_PREAMBLE_LINES} lines after the '#' header; a wide CSV run file has one, then one "
+                           "row per time step")
+    header = _preamble_header(path, plain[:k], header)
+    skip += k
+    first = plain[k]
     sep = _separator(first)
     try:
         df = pd.read_csv(path, skiprows=skip, sep=sep, encoding="utf-8-sig", dtype=str, keep_default_na=False)
