@@ -4,8 +4,9 @@ At a driving point (an accelerometer at the hammer's node, measuring along the h
 constant is a square: ``A_kr = (φ_r·d_s)(φ_r·d_f)`` with ``d_s = ±d_f`` is ``±(φ_r·d_f)²`` (thesis eqs. 2.24–2.29,
 the mass-normalised shape at the sensor times the shape at the force point). So the accelerance of a driving point
 is ``+i A/(2ζ)`` at each resonance, with ``A > 0`` for a sensor that measures in the hammer's direction: a
-classic check of a hammer test (Ewins, *Modal testing*, the checks of a point FRF). A force channel with a negative sensitivity, or a
-hammer or sensor direction reversed in the channel table, turns every one of them the other way. The MAC with an
+classic check of a hammer test (Ewins, *Modal testing*, the checks of a point FRF). A force channel with a
+negative sensitivity, or a hammer or sensor direction reversed in the channel table, turns every one of them the
+other way. The MAC with an
 FE shape cannot see that (it is blind to a shape's sign), and the hybrid model then adds the measured modes with
 the wrong sign.
 

@@ -221,8 +221,8 @@ def test_punch_sorted_by_point_is_refused_with_the_request_to_change(tmp_path):
     lines = _punch_lines(tmp_path)
     k = next(i for i, ln in enumerate(lines) if ln.startswith("$EIGENVALUE"))
     sort2 = lines[:k] + [f"{'$POINT ID =          11  IDENTIFIED BY MODE':<72}{k + 1:8d}\n"]
-    sort2 += [f"{m:10d}       G{0.1 * m:18.6E}{0.0:18.6E}{0.0:18.6E}\n" f"-CONT-{'':12}{0.0:18.6E}{0.0:18.6E}{0.0:18.6E}\n"
-              for m in (1, 2, 3)]
+    sort2 += [f"{m:10d}       G{0.1 * m:18.6E}{0.0:18.6E}{0.0:18.6E}\n"
+              f"-CONT-{'':12}{0.0:18.6E}{0.0:18.6E}{0.0:18.6E}\n" for m in (1, 2, 3)]
     with pytest.raises(FEReadError, match=rf"s2\.pch, line {k + 1}: .*SORT2.*DISPLACEMENT\(PUNCH,SORT1\)"):
         fem_import.read(_write(tmp_path, "s2.pch", sort2))
 

@@ -321,8 +321,8 @@ def _read_setup(s: SetupFiles, table, name: str, band, max_order: int, n_average
     checks = driving_point_checks(result.modes, framed)
     for finding in driving_point_findings(checks, source=f"setup {name!r} ({s.label})"):
         log.warning("%s", finding)
-    info["driving_points"] = [{"channel": c.channel, "verdict": c.verdict, "wrong_share": c.wrong_share if np.isfinite(c.wrong_share) else None}
-                              for c in checks]
+    info["driving_points"] = [{"channel": c.channel, "verdict": c.verdict,
+                               "wrong_share": c.wrong_share if np.isfinite(c.wrong_share) else None} for c in checks]
     meas = Measurement(frf, framed, name, noise_variance=noise_var, noise_method=method)
     info["noise_floor_method"] = meas.noise_method
     say(f"{name}: {len(result.modes)} modes identified")
