@@ -1271,6 +1271,8 @@ def read_hammer(uff_path, channels_csv, *, format: str | None = None) -> HammerT
     table's unit with one WARNING per label naming its channels. Records of
     different hits may start at different times (absolute trigger times,
     sub-sample trigger jitter: INFO); the test's time axis is the first hit's.
+    A file of one record per channel that holds several impacts (a continuous
+    recording) is cut into one hit per impact (:mod:`ema.continuous`).
     """
     if isinstance(uff_path, (list, tuple)):
         paths = [Path(os.fspath(q)) for q in uff_path]
@@ -1285,7 +1287,9 @@ def read_hammer(uff_path, channels_csv, *, format: str | None = None) -> HammerT
     if not path.is_file():
         raise FileNotFoundError(f"hammer-test file {str(path)!r} does not exist")
     table = _table(channels_csv, path)
-    return _read_one(path, table, format)
+    from .continuous import split_continuous  # a continuous recording is cut into hits (ema.continuous)
+
+    return split_continuous(_read_one(path, table, format))
 
 
 def _table(channels_csv, path: Path) -> pd.DataFrame:
