@@ -51,6 +51,17 @@ Checks (thresholds in :class:`ScreeningConfig`):
     and return. A genuine peak is a single sample: with 24-bit converters and
     sensor noise, two samples equal to the maximum to the last bit are very
     unlikely (none in the virtual-lab campaigns' ~1400 unclipped records).
+``clipped``, a rounded clip (one channel of one hit)
+    The channel's peak is below ``min_peak_ratio`` x the peak its own force
+    predicts through the H1 of the other accepted hits (all frequencies, each
+    record about its rest value; needs two other hits). A signal clipped
+    before the converter's anti-aliasing or decimation filter (an analogue
+    input or a sigma-delta modulator overloaded) comes out rounded, its flat
+    top gone, so no two samples equal; but a structure is linear, so the
+    other hits tell how high the peak should have been, and a clip only ever
+    lowers it. Measured on the virtual lab's 66 setups (9446 accepted
+    records) the ratio lies within 0.96–1.05; a record clipped at 0.9, 0.7
+    and 0.5 of its peak and then filtered gives 0.91, 0.73 and 0.53.
 ``level inconsistent`` (one channel of one hit)
     The channel's response level per unit force (RMS of the record over the
     force pulse's RMS) differs from its median over the hits by more than
@@ -81,7 +92,7 @@ from .estimate import ForceWindow, _spectra, auto_exp_decay, main_pulse, rest_va
 from .estimate import force_window as _pulse_window
 from .hammer_io import HammerTest
 
-__all__ = ["ScreeningConfig", "Rejection", "Screening", "screen_hits", "REASONS", "flat_extreme_count"]
+__all__ = ["ScreeningConfig", "Rejection", "Screening", "screen_hits", "REASONS", "flat_extreme_count", "peak_ratios"]
 
 log = logging.getLogger("ema")
 
@@ -120,6 +131,8 @@ class ScreeningConfig:
         A peak force below this many force-noise RMS is too weak.
     clip_min_samples : int
         Samples at the extreme value that make a channel (or the force) clipped.
+    min_peak_ratio : float
+        A channel's peak below this share of the peak the other hits' FRF predicts for the hit's force is clipped.
     min_coherence : float
         Coherence below this is "low".
     max_low_coherence_fraction : float
@@ -140,6 +153,7 @@ class ScreeningConfig:
     n_neighbours: int = 4
     min_force_snr: float = 100.0
     clip_min_samples: int = 2
+    min_peak_ratio: float = 0.8
     min_coherence: float = 0.8
     max_low_coherence_fraction: float = 0.5
     check_coherence: bool = True
@@ -152,7 +166,8 @@ class ScreeningConfig:
         if int(self.n_neighbours) != self.n_neighbours or self.n_neighbours < 1:
             raise ValueError(f"ScreeningConfig.n_neighbours must be an integer >= 1, got {self.n_neighbours!r}")
         for name in ("pulse_level", "double_hit_level", "weak_force_ratio", "min_coherence",
-                     "max_low_coherence_fraction", "max_energy_outside", "min_record_after_share"):
+                     "max_low_coherence_fraction", "max_energy_outside", "min_record_after_share",
+                     "min_peak_ratio"):
             v = getattr(self, name)
             if not 0 <= v <= 1:
                 raise ValueError(f"ScreeningConfig.{name} must be in [0, 1], got {v!r}")
@@ -274,6 +289,36 @@ def flat_extreme_count(x: np.ndarray) -> tuple[int, float]:
             if c > best[0]:
                 best = (c, v)
     return best
+
+
+def peak_ratios(test: HammerTest, accepted: np.ndarray, f_rest: np.ndarray, a_rest: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Each accepted record's peak over the peak its force predicts through the other accepted hits' H1.
+
+    For channel ``j`` and hit ``h``: ``H = Σ_k F_k* A_k / Σ_k |F_k|²`` over the channel's other accepted hits
+    ``k`` (whole records about their rest values, every line), the prediction ``irfft(H F_h)``, and the ratio of
+    the record's largest ``|a|`` to the prediction's. Returns ``(ratio, predicted peak)``, both ``(n_hits, n_ch)``,
+    NaN where the channel has fewer than three accepted hits or the cell is not accepted.
+    """
+    n = test.n_samples
+    ratio = np.full(accepted.shape, np.nan)
+    predicted = np.full(accepted.shape, np.nan)
+    F = np.fft.rfft(test.force - f_rest[:, None], axis=1)
+    for j in range(test.n_channels):
+        hs = np.flatnonzero(accepted[:, j])
+        if hs.size < 3:
+            continue
+        a = test.responses[hs, j] - a_rest[hs, j][:, None]
+        A = np.fft.rfft(a, axis=1)
+        Fh = F[hs]
+        cross, power = Fh.conj() * A, np.abs(Fh) ** 2
+        with np.errstate(divide="ignore", invalid="ignore"):
+            H = np.nan_to_num((cross.sum(axis=0) - cross) / (power.sum(axis=0) - power))
+        peak = np.abs(np.fft.irfft(H * Fh, n, axis=1)).max(axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio[hs, j] = np.abs(a).max(axis=1) / peak
+        predicted[hs, j] = peak
+    return ratio, predicted
 
 
 def _robust_rms(x: np.ndarray) -> float:
@@ -493,10 +538,21 @@ def screen_hits(
                 accepted[h, j] = False
 
     # ---- DC offsets (named, not rejected: the spectra and levels are taken about them)
-    rest = rest_values(test, cfg.pulse_level)[1]
+    f_rest, rest = rest_values(test, cfg.pulse_level)
     with np.errstate(over="ignore", invalid="ignore"):
         level = np.sqrt(np.mean(np.square(test.responses - rest[:, :, None]), axis=2))
     _report_offsets(test, rest, level)
+
+    # ---- clipped before the converter's filter: the peak against the one the other hits predict
+    ratio, predicted = peak_ratios(test, accepted, f_rest, rest)
+    for h, j in zip(*np.nonzero(ratio < cfg.min_peak_ratio)):
+        others = int(accepted[:, j].sum()) - 1
+        reject(test.hits[h], j, "clipped",
+               f"peak {np.abs(test.responses[h, j] - rest[h, j]).max():.4g} m/s^2 is {ratio[h, j]:.2f} x the "
+               f"{predicted[h, j]:.4g} m/s^2 its force predicts through the other {others} hits' FRF (limit "
+               f"{cfg.min_peak_ratio:g} x): clipped before the converter's filter, which rounds the flat top (the "
+               "input range set too low for this hit)")
+    accepted &= ~(ratio < cfg.min_peak_ratio)
 
     # ---- levels: per unit force across hits, and against the neighbouring sensors
     _check_levels(test, cfg, accepted, pulse_rms, level, reject)
