@@ -204,20 +204,34 @@ def test_a_clip_rounded_by_the_converters_filter_is_found_by_the_other_hits(rati
         assert scr.rejections == ()
 
 
+def test_a_record_scaled_wrongly_is_not_called_clipped():
+    """A sensitivity halved in one hit lowers the peak as much as the rest of the record: no compression, so no
+    clip (the level checks judge a scale)."""
+    from ema.estimate import rest_values
+    from ema.screening import peak_compression
+
+    force, resp = toy_hits()
+    resp[2, 1] *= 0.5
+    test = HammerTest.from_arrays(force, resp, FS, toy_table())
+    compression = peak_compression(test, np.ones((5, 3), bool), *rest_values(test))[0]
+    assert compression[2, 1] == pytest.approx(1.0, abs=0.01)
+    assert "clipped" not in {r.reason for r in screen_hits(test, config=ScreeningConfig(check_coherence=False)).rejections}
+
+
 def test_the_peak_predicted_by_the_other_hits_is_the_hits_own_on_clean_records():
     """The toy's 15 clean records: each peak within 0.5 % of its prediction (noise and 24-bit quantisation)."""
     from ema.estimate import rest_values
-    from ema.screening import peak_ratios
+    from ema.screening import peak_compression
 
     force, resp = toy_hits()
     test = HammerTest.from_arrays(force, resp, FS, toy_table())
-    ratio, predicted = peak_ratios(test, np.ones((5, 3), bool), *rest_values(test))
+    ratio, predicted = peak_compression(test, np.ones((5, 3), bool), *rest_values(test))
     np.testing.assert_allclose(ratio, 1.0, atol=5e-3)
     np.testing.assert_allclose(predicted, np.abs(resp).max(axis=2), rtol=5e-3)
     # a channel with two accepted hits has no prediction
     acc = np.ones((5, 3), bool)
     acc[2:, 0] = False
-    assert np.isnan(peak_ratios(test, acc, *rest_values(test))[0][:, 0]).all()
+    assert np.isnan(peak_compression(test, acc, *rest_values(test))[0][:, 0]).all()
 
 
 def test_genuine_peaks_are_not_clipping():
