@@ -95,7 +95,8 @@ from .estimate import ForceWindow, _spectra, auto_exp_decay, main_pulse, rest_va
 from .estimate import force_window as _pulse_window
 from .hammer_io import HammerTest
 
-__all__ = ["ScreeningConfig", "Rejection", "Screening", "screen_hits", "REASONS", "flat_extreme_count", "peak_compression"]
+__all__ = ["ScreeningConfig", "Rejection", "Screening", "screen_hits", "REASONS", "flat_extreme_count",
+           "peak_compression"]
 
 log = logging.getLogger("ema")
 

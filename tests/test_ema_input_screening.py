@@ -193,7 +193,8 @@ def test_a_clip_rounded_by_the_converters_filter_is_found_by_the_other_hits(rati
     force, resp = toy_hits()
     resp[2, 1] = rounded_clip(resp[2, 1], ratio)
     assert flat_extreme_count(resp[2, 1])[0] < 2
-    scr = screen_hits(HammerTest.from_arrays(force, resp, FS, toy_table()), config=ScreeningConfig(check_coherence=False))
+    scr = screen_hits(HammerTest.from_arrays(force, resp, FS, toy_table()),
+                      config=ScreeningConfig(check_coherence=False))
     if rejected:
         (rej,) = scr.rejections
         assert (rej.hit, rej.channel, rej.reason) == (3, "ch1", "clipped")
@@ -215,7 +216,8 @@ def test_a_record_scaled_wrongly_is_not_called_clipped():
     test = HammerTest.from_arrays(force, resp, FS, toy_table())
     compression = peak_compression(test, np.ones((5, 3), bool), *rest_values(test))[0]
     assert compression[2, 1] == pytest.approx(1.0, abs=0.01)
-    assert "clipped" not in {r.reason for r in screen_hits(test, config=ScreeningConfig(check_coherence=False)).rejections}
+    scr = screen_hits(test, config=ScreeningConfig(check_coherence=False))
+    assert "clipped" not in {r.reason for r in scr.rejections}
 
 
 def test_the_peak_predicted_by_the_other_hits_is_the_hits_own_on_clean_records():
