@@ -33,11 +33,14 @@ __all__ = ["FormatInfo", "Geometry", "register_format", "unregister_format", "fo
 
 log = logging.getLogger("fem_import")
 
+#: Nastran result files: eigenvectors in each grid's displacement system (CD), subcases
+NASTRAN_RESULTS = ("nastran-punch", "nastran-f06")
 #: Number of leading bytes handed to the sniffing functions.
 SNIFF_BYTES = 4096
 #: What the built-in formats are recognised by (for messages).
 HOW_RECOGNISED = ("a universal file starts with a '    -1' line and a dataset number; a Nastran punch file with a "
-                  "header card such as '$TITLE' or '$EIGENVECTOR'; a Nastran bulk deck with executive or case control "
+                  "header card such as '$TITLE' or '$EIGENVECTOR'; a Nastran print file (.f06) by its spaced-letter "
+                  "headings and page numbers; a Nastran bulk deck with executive or case control "
                   "(NASTRAN, ASSIGN, SOL, CEND, ...) or bulk entries (BEGIN BULK, PARAM, CORD2R, GRID, ...; a "
                   ".bdf/.dat/.nas/.blk file with a GRID card in its first 4 kB).")
 
@@ -348,7 +351,7 @@ def merge_geometry(modes: FEModes, geometry) -> FEModes:
     if geo.displacement_frames is not None:
         frames = np.asarray(geo.displacement_frames, float)[keep]
         local = np.flatnonzero(np.abs(frames - np.eye(3)).max(axis=(1, 2)) > 0)
-        if local.size and modes.format != "nastran-punch":
+        if local.size and modes.format not in NASTRAN_RESULTS:
             # a CD system says how Nastran punches a grid's components; another file states its own directions
             log.warning("%s: %d node(s) of the geometry %s have displacement coordinate systems (CD); the modes were "
                         "read from a %s file, whose components are taken as global, not rotated", modes.source,
@@ -508,10 +511,10 @@ def read_with_geometry(path, geometry=None, *, option: str = "--geometry", subca
     p = Path(os.fspath(path))
     info = detect_format(p)
     kwargs = {}
-    if info.name == "nastran-punch":
+    if info.name in NASTRAN_RESULTS:
         kwargs["subcase"] = "lowest" if subcase is None else subcase
     elif subcase is not None:
-        raise UnknownFormatError(f"{p}: subcase={subcase!r} applies to Nastran punch files; this file is "
+        raise UnknownFormatError(f"{p}: subcase={subcase!r} applies to Nastran punch and print files; this file is "
                                  f"{info.name!r}", path=str(p), supported=tuple(_REGISTRY))
     if units is not None and units not in UNIT_SYSTEMS:
         raise ValueError(f"unknown FE unit system {units!r}; known: {', '.join(UNIT_SYSTEMS)}")

@@ -2,8 +2,9 @@
 
 Independent of :mod:`fem_import` (which reads them) and small on purpose: a
 few nodes, elements and modes, written with the layouts of the formats
-(UFF 164/2411/2412/55 card images, Nastran punch SORT1 cards, Nastran bulk
-data in small, large and free field).
+(UFF 164/2411/2412/55 card images, Nastran punch SORT1 cards, a Nastran
+print file's eigenvalue and eigenvector tables, Nastran bulk data in small,
+large and free field).
 """
 
 from __future__ import annotations
@@ -88,6 +89,54 @@ def punch(modes, *, subcase: int = 1, title: str = "RAILMODAL TEST") -> str:
         for n, row in zip(ids, np.asarray(vals, float)):
             card(f"{int(n):10d}{'':7}G{row[0]:18.6E}{row[1]:18.6E}{row[2]:18.6E}")
             card(f"-CONT-{'':12}{row[3]:18.6E}{row[4]:18.6E}{row[5]:18.6E}")
+    return "".join(out)
+
+
+# --------------------------------------------------------------------------------------------- Nastran print file
+def f06(modes, *, subcase: int = 1, gen_mass=None, rows_per_page: int = 50, title: str = "RAILMODAL TEST",
+        scalars=()) -> str:
+    """An MSC Nastran ``.f06`` of a SOL 103 run: an echo page, the eigenvalue table, and one eigenvector table
+    per mode broken over pages of ``rows_per_page`` grid rows (each page with its header and the mode's banner
+    again). ``modes`` is [(mode number, eigenvalue (rad/s)^2, ids, (n, 6) values)]; ``gen_mass`` the generalized
+    masses printed (1 each by default); ``scalars`` scalar-point ids printed after the grids (one row, zeros)."""
+    page = [0]
+    out = []
+
+    def header():
+        page[0] += 1
+        out.append(f"1    {title:<60}DECEMBER   3, 2026  MSC Nastran  2/22/22   PAGE {page[0]:5d}\n")
+        out.append(" \n")
+        out.append(f"0{'':104}SUBCASE {subcase}\n")
+
+    out.append(f"1    {title:<60}DECEMBER   3, 2026  MSC Nastran  2/22/22   PAGE {page[0]:5d}\n")
+    out.append("0        N A S T R A N    E X E C U T I V E    C O N T R O L    E C H O\n")
+    out.append("     SOL 103\n     CEND\n")
+    header()
+    out.append(f"{'':46}R E A L   E I G E N V A L U E S\n")
+    out.append("   MODE    EXTRACTION      EIGENVALUE            RADIANS             CYCLES            GENERALIZED"
+               "         GENERALIZED\n")
+    out.append("    NO.       ORDER                                                                       MASS      "
+               "        STIFFNESS\n")
+    gms = np.ones(len(modes)) if gen_mass is None else np.asarray(gen_mass, float)
+    for (number, lam, _, _), gm in zip(modes, gms):
+        w = np.sqrt(max(lam, 0.0))
+        out.append(f"{number:9d}{number:10d}{lam:20.6E}{w:20.6E}{w / (2 * np.pi):20.6E}{gm:20.6E}{gm * lam:20.6E}\n")
+    for number, lam, ids, vals in modes:
+        vals = np.asarray(vals, float)
+        for start in range(0, len(ids), rows_per_page):
+            header()
+            out.append(f"      EIGENVALUE = {lam:13.6E}\n")
+            out.append(f"          CYCLES = {np.sqrt(max(lam, 0.0)) / (2 * np.pi):13.6E}         R E A L   E I G E N V "
+                       f"E C T O R   N O . {number:10d}\n")
+            out.append(" \n")
+            out.append("      POINT ID.   TYPE          T1             T2             T3             R1             R2"
+                       "             R3\n")
+            for n, row in zip(ids[start:start + rows_per_page], vals[start:start + rows_per_page]):
+                cells = "".join("      0.0      " if v == 0 else f"{v:15.6E}" for v in row)
+                out.append(f"{int(n):14d}      G  {cells}\n")
+        if scalars:
+            out.append(f"{int(scalars[0]):14d}      S  " + "      0.0      " * min(6, len(scalars)) + "\n")
+    out.append("1                                        * * * END OF JOB * * *\n")
     return "".join(out)
 
 

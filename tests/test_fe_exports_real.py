@@ -427,3 +427,84 @@ def test_declared_units_are_refused_for_a_file_that_states_its_own(tmp_path):
         read_with_geometry(path, units="mm-t-s")
     with pytest.raises(ValueError, match="unknown FE unit system 'cm-g-s'; known: m-kg-s, mm-t-s"):
         read_with_geometry(path, units="cm-g-s")
+
+
+# ------------------------------------------------------------------------------------ D17: the Nastran print file
+def _design():
+    return fem_import.read(campaign_dir("control") / "fe_design.uff")
+
+
+def _f06_modes(fe, scale=None):
+    lam = (2 * np.pi * fe.freqs_hz) ** 2
+    s = np.ones(len(fe)) if scale is None else scale
+    return [(int(n), float(lam[k]), fe.node_ids, fe.shapes[k] * s[k]) for k, n in enumerate(fe.mode_numbers)]
+
+
+def test_d17_a_print_file_gives_the_modes_of_the_universal_file(tmp_path, caplog):
+    """The lab's design export written as MSC Nastran prints it (an echo page, the eigenvalue table, 25 eigenvector
+    tables of 1129 grids broken over pages of 50 rows, a scalar point), with its bulk deck beside it: the same
+    modes to the print's 7 digits, coordinates from the deck, mode numbers kept."""
+    fe = _design()
+    (tmp_path / "ws.f06").write_text(fx.f06(_f06_modes(fe), scalars=(99001,)))
+    (tmp_path / "ws.bdf").write_text(fx.deck(fx.grids(fe.node_ids, fe.xyz)))
+    assert fem_import.detect_format(tmp_path / "ws.f06").name == "nastran-f06"
+    with caplog.at_level(logging.INFO, logger="fem_import"):
+        got, where = fem_import.read_with_geometry(tmp_path / "ws.f06")
+    assert "companion file" in where and "S x25" in caplog.text
+    np.testing.assert_array_equal(got.node_ids, fe.node_ids)
+    np.testing.assert_array_equal(got.mode_numbers, fe.mode_numbers)
+    np.testing.assert_allclose(got.xyz, fe.xyz, atol=1e-9)
+    np.testing.assert_allclose(got.freqs_hz, fe.freqs_hz, rtol=1e-6, atol=1e-3)
+    np.testing.assert_allclose(got.shapes, fe.shapes, rtol=1e-6, atol=1e-6 * np.abs(fe.shapes).max())
+    # the content decides, not the extension
+    shutil.copy(tmp_path / "ws.f06", tmp_path / "ws.txt")
+    assert fem_import.detect_format(tmp_path / "ws.txt").name == "nastran-f06"
+
+
+def test_d17_a_norm_max_run_is_mass_normalised_by_the_printed_generalized_mass(tmp_path):
+    """NORM=MAX: every shape scaled to a largest component of 1, the generalized mass printed accordingly
+    (m = c² for φ_max = c φ_mass): divided out, the mass-normalised shapes come back."""
+    fe = _design()
+    fe = fem_import.FEModes(fe.node_ids, fe.xyz, fe.elements, fe.freqs_hz[6:], fe.shapes[6:], fe.modal_mass[6:],
+                            mode_numbers=fe.mode_numbers[6:])
+    c = 1.0 / np.abs(fe.shapes).max(axis=(1, 2))
+    (tmp_path / "max.f06").write_text(fx.f06(_f06_modes(fe, c), gen_mass=c ** 2))
+    got = fem_import.read(tmp_path / "max.f06")
+    assert "the eigenvalue table's generalized mass" in got.history[-1]
+    np.testing.assert_allclose(got.shapes, fe.shapes, rtol=2e-6, atol=2e-6 * np.abs(fe.shapes).max())
+
+
+def test_d17_print_file_refusals_name_the_line(tmp_path, caplog):
+    fe = _design()
+    modes = _f06_modes(fe)[:8]
+    text = fx.f06(modes, rows_per_page=400)
+    lines = text.splitlines(keepends=True)
+    # a grid row cut short
+    k = next(i for i, ln in enumerate(lines) if ln.strip().startswith(f"{fe.node_ids[3]} ") and " G " in ln)
+    bad = lines[:k] + [lines[k][:60] + "\n"] + lines[k + 1:]
+    (tmp_path / "cut.f06").write_text("".join(bad))
+    with pytest.raises(fem_import.FEReadError, match=rf"cut\.f06, line {k + 1}: grid {fe.node_ids[3]} of eigenvector "
+                                                     r"1: \d values, expected T1 T2 T3 R1 R2 R3"):
+        fem_import.read(tmp_path / "cut.f06")
+    # the file stops inside the last mode's table
+    (tmp_path / "short.f06").write_text("".join(lines[:-600]))
+    with pytest.raises(fem_import.FEReadError, match=r"eigenvector 8 lacks grid\(s\)"):
+        fem_import.read(tmp_path / "short.f06")
+    # two subcases: refused in Python without subcase=, the lowest read by read_with_geometry with a warning
+    two = text + fx.f06(modes[:3], subcase=2)
+    (tmp_path / "two.f06").write_text(two)
+    with pytest.raises(fem_import.FEReadError, match=r"2 subcases \[1, 2\]"):
+        fem_import.read(tmp_path / "two.f06")
+    assert len(fem_import.read(tmp_path / "two.f06", subcase=2)) == 3
+    (tmp_path / "two.bdf").write_text(fx.deck(fx.grids(fe.node_ids, fe.xyz)))
+    with caplog.at_level(logging.WARNING, logger="fem_import"):
+        assert len(fem_import.read_with_geometry(tmp_path / "two.f06")[0]) == 8
+    assert "subcase 1 is read" in caplog.text
+    # complex eigenvectors, and a run that printed none
+    (tmp_path / "cplx.f06").write_text(text.replace("R E A L   E I G E N V E C T O R",
+                                                    "C O M P L E X   E I G E N V E C T O R"))
+    with pytest.raises(fem_import.FEReadError, match="complex eigenvectors are not supported"):
+        fem_import.read(tmp_path / "cplx.f06")
+    (tmp_path / "none.f06").write_text("".join(ln for ln in lines if "E I G E N V E C T O R" not in ln))
+    with pytest.raises(fem_import.FEReadError, match=r"no real eigenvectors found .*DISPLACEMENT\(PRINT\)"):
+        fem_import.read(tmp_path / "none.f06")
