@@ -232,10 +232,10 @@ def add_geometry_argument(parser) -> None:
     from fem_import.modes import UNIT_SYSTEMS
 
     parser.add_argument("--geometry", default=None, type=existing_file("--geometry", "geometry"),
-                        help="node coordinates and elements for an FE file without them (a Nastran punch or .f06): a UFF "
-                             "with datasets 2411/2412 or a Nastran bulk data file (default: a companion file of the "
-                             "same name, .bdf/.dat/.nas/.uff)")
+                        help="node coordinates and elements for an FE file without them (a Nastran punch or "
+                             ".f06): a UFF with datasets 2411/2412 or a Nastran bulk data file (default: a companion "
+                             "file of the same name, .bdf/.dat/.nas/.uff)")
     parser.add_argument("--fe-units", default=None, choices=tuple(UNIT_SYSTEMS),
-                        help="unit system of an FE export that does not state it (a Nastran punch or .f06 and bulk deck, a "
-                             "UFF without dataset 164), converted to SI: e.g. mm-t-s, the usual Nastran set for "
-                             "steel (default: SI as read; a UFF with dataset 164 is converted by it)")
+                        help="unit system of an FE export that does not state it (a Nastran punch or .f06 and bulk "
+                             "deck, a UFF without dataset 164), converted to SI: e.g. mm-t-s, the usual Nastran set "
+                             "for steel (default: SI as read; a UFF with dataset 164 is converted by it)")
