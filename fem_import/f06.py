@@ -28,6 +28,13 @@ of each grid in its displacement coordinate system (``CD``), as it punches them;
 says which, and :func:`fem_import.merge_geometry` rotates them to the basic system. A print file carries no
 geometry and states no units: as for a punch, the coordinates come from a companion deck or ``--geometry``, and
 units are SI unless declared (``--fe-units``). Complex eigenvectors are refused.
+
+**Geometry from the bulk data echo.** A run with ``ECHO = SORT`` (Nastran's default) prints its bulk data in the
+``S O R T E D   B U L K   D A T A   E C H O``: each card image eight columns after its entry count and dash
+(``      27-        GRID    1001            0.      -.75    0.``). Those card images are read by the bulk-deck
+reader (:func:`fem_import.nastran_bulk.bulk_geometry`, at the print file's own line numbers): grids, coordinate
+systems and elements, merged into the modes as a companion deck would be. A print file without the echo
+(``ECHO = NONE``), or whose echo lacks a grid of the eigenvectors, takes its geometry from a companion deck.
 """
 
 from __future__ import annotations
@@ -52,6 +59,7 @@ _EIGENVALUE = re.compile(r"^\s*EIGENVALUE\s*=\s*(\S+)")
 _TABLE = re.compile(r"R E A L\s+E I G E N V A L U E S")
 _SUBCASE = re.compile(r"SUBCASE\s+(\d+)\s*$")
 _SPACED = re.compile(r"(?:[A-Z] ){4,}[A-Z]")
+_ECHO_CARD = re.compile(r"^\s*\d+-")
 _NUMBER = re.compile(r"^([+-]?(?:\d+\.?\d*|\.\d+))(?:[EeDd]?([+-]\d+))?$")
 
 
@@ -59,6 +67,24 @@ def sniff_f06(head: bytes) -> bool:
     """True for a Nastran print file: spaced-letter headings (``E X E C U T I V E``, ``R E A L``) and page numbers."""
     text = head.decode("latin-1")
     return bool(_SPACED.search(text)) and bool(re.search(r"\bPAGE\s+\d+", text)) and "NASTRAN" in text.upper()
+
+
+def _echo(lines: list[str]) -> list[str] | None:
+    """The sorted bulk data echo's card images at their own line numbers, every other line blank (None: no echo)."""
+    out = [""] * len(lines)
+    inside = found = False
+    for i, text in enumerate(lines):
+        if "S O R T E D   B U L K   D A T A   E C H O" in text:
+            inside = found = True
+            continue
+        if not inside:
+            continue
+        m = _ECHO_CARD.match(text)
+        if m:
+            out[i] = text[m.end() + 8:].rstrip()
+        elif text.strip().upper() == "ENDDATA" or _TABLE.search(text) or _VECTOR.search(text):
+            inside = False
+    return out if found else None
 
 
 def _number(token: str) -> float | None:
@@ -123,6 +149,9 @@ def _parse(path: str, lines: list[str]):
                 current = modes[key] = _Mode(number, eigenvalue, subcase, line_no)
             in_table = False
             continue
+        if text.startswith("1"):
+            current = None  # a page eject ends a table; a banner on the next page resumes it
+            continue
         tokens = text.split()
         if in_table:
             vals = [_number(t) for t in tokens]
@@ -134,8 +163,6 @@ def _parse(path: str, lines: list[str]):
                 table[key] = (vals[2], vals[5])
             continue
         if current is None or len(tokens) < 2 or not tokens[0].isdigit() or len(tokens[1]) != 1:
-            if current is not None and text.startswith("1"):
-                current = None  # a page eject ends the table; a banner on the next page resumes it
             continue
         kind = tokens[1].upper()
         if kind != "G":
@@ -160,7 +187,7 @@ def _parse(path: str, lines: list[str]):
     return list(modes.values()), table
 
 
-def read_f06(path: str, *, subcase: int | str | None = None) -> FEModes:
+def read_f06(path: str, *, subcase: int | str | None = None, echo: bool = True) -> FEModes:
     """Read real eigenvectors from a Nastran print file (module docstring).
 
     Parameters
@@ -170,13 +197,17 @@ def read_f06(path: str, *, subcase: int | str | None = None) -> FEModes:
     subcase : int, "lowest" or None, optional
         As for :func:`fem_import.punch.read_punch`: None requires a single subcase, ``"lowest"`` reads the lowest
         with a WARNING naming the others.
+    echo : bool, optional
+        Take the geometry from the bulk data echo (module docstring); :func:`fem_import.read` passes False when
+        it is given a geometry.
 
     Returns
     -------
     FEModes
-        Modes in mode-number order, 6 DOF per grid in the grid order of the first mode, mass-normalised (the
-        generalized mass of the eigenvalue table divided out), the file's mode numbers kept; node coordinates
-        NaN and no elements (merge them with ``read(..., geometry=...)``).
+        Modes in mode-number order, 6 DOF per grid, mass-normalised (the generalized mass of the eigenvalue
+        table divided out), the file's mode numbers kept; coordinates, elements and displacement systems from
+        the bulk data echo when the file has one, else node coordinates NaN and no elements (merge them with
+        ``read(..., geometry=...)``), in the grid order of the first mode.
 
     Raises
     ------
@@ -252,11 +283,32 @@ def read_f06(path: str, *, subcase: int | str | None = None) -> FEModes:
     if big_neg.size:
         log.warning("%s: mode(s) %s have negative eigenvalues %s (below -(2 pi 0.1 Hz)^2); set to 0 Hz", path,
                     [numbers[k] for k in big_neg], lam[big_neg].tolist())
-    return FEModes(node_ids=ref_ids, xyz=np.full((ref_ids.size, 3), np.nan), elements=(),
-                   freqs_hz=np.sqrt(np.maximum(lam, 0.0)) / (2 * math.pi), shapes=shapes,
-                   modal_mass=np.ones(len(modes)), source=str(path), format="nastran-f06",
-                   units="SI (m, kg, s) assumed (a print file does not state units)", history=tuple(history),
-                   mode_numbers=np.asarray(numbers, np.int64))
+    fe = FEModes(node_ids=ref_ids, xyz=np.full((ref_ids.size, 3), np.nan), elements=(),
+                 freqs_hz=np.sqrt(np.maximum(lam, 0.0)) / (2 * math.pi), shapes=shapes,
+                 modal_mass=np.ones(len(modes)), source=str(path), format="nastran-f06",
+                 units="SI (m, kg, s) assumed (a print file does not state units)", history=tuple(history),
+                 mode_numbers=np.asarray(numbers, np.int64))
+    cards = _echo(lines) if echo else None
+    if cards is None:
+        return fe
+    from .nastran_bulk import bulk_geometry
+    from .registry import merge_geometry
+
+    if not any(c[:8].strip().rstrip("*").upper() == "GRID" for c in cards if c):
+        log.info("%s: the bulk data echo has no GRID card; the geometry must come from a companion deck", path)
+        return fe
+    try:
+        geometry = bulk_geometry(path, cards)
+    except FEReadError as exc:
+        log.warning("%s: the bulk data echo does not give the geometry (%s); give the deck (--geometry) or put it "
+                    "beside the print file", path, exc)
+        return fe
+    absent = sorted(set(ref_ids.tolist()) - set(geometry.node_ids.tolist()))
+    if absent:
+        log.warning("%s: the bulk data echo lacks %d grid(s) of the eigenvectors (first %s): its geometry is not "
+                    "used; give the deck (--geometry) or put it beside the print file", path, len(absent), absent[:5])
+        return fe
+    return merge_geometry(fe, geometry)
 
 
 register_format("nastran-f06", patterns=("*.f06", "*.F06"), sniff=sniff_f06, reader=read_f06, geometry=None,

@@ -94,7 +94,8 @@ from .modes import Element, FEModes
 from .nastran_coords import resolve
 from .registry import Geometry, register_format
 
-__all__ = ["read_bulk_geometry", "sniff_bulk", "parse_nastran_real", "BULK_SUFFIXES", "CARD_DESCRIPTORS"]
+__all__ = ["read_bulk_geometry", "bulk_geometry", "sniff_bulk", "parse_nastran_real", "BULK_SUFFIXES",
+           "CARD_DESCRIPTORS"]
 
 log = logging.getLogger("fem_import")
 
@@ -589,7 +590,12 @@ def read_bulk_geometry(path: str) -> Geometry:
     begin = next((k for k, ln in enumerate(lines) if _BEGIN_BULK.match(ln)), None)
     if begin is None:  # a bulk-only (include) file; executive and case control alone end with CEND
         begin = next((k for k, ln in enumerate(lines) if ln.strip().upper() == "CEND"), -1)
-    start = begin + 1
+    return bulk_geometry(path, lines, begin + 1)
+
+
+def bulk_geometry(path: str, lines: list[str], start: int = 0) -> Geometry:
+    """:func:`read_bulk_geometry` of bulk entries given as card images (``lines[start:]``; blank lines are
+    skipped, so a print file's echo can be passed at its own line numbers, the rest blanked)."""
     ids: list[int] = []
     grids: dict[int, tuple] = {}  # id -> (CP, coordinates in CP, line)
     cds: dict[int, int] = {}  # id -> CD, where not basic

@@ -382,7 +382,8 @@ def read(path, format: str | None = None, *, geometry=None, **kwargs) -> FEModes
         The file.
     format : str, optional
         Format name or alias (see :func:`formats`): ``"uff"`` (alias
-        ``"unv"``) or ``"nastran-punch"`` (aliases ``"pch"``, ``"punch"``).
+        ``"unv"``), ``"nastran-punch"`` (aliases ``"pch"``, ``"punch"``) or
+        ``"nastran-f06"`` (alias ``"f06"``).
         None (default): sniffed from the content, whatever the extension.
     geometry : str, os.PathLike, FEModes or Geometry, optional
         Source of node coordinates and elements to merge in (needed for a
@@ -417,6 +418,9 @@ def read(path, format: str | None = None, *, geometry=None, **kwargs) -> FEModes
 
     p = _check_file(path)
     info = format_info(format) if format is not None else detect_format(p)
+    if geometry is not None and "echo" in inspect.signature(info.reader).parameters:
+        # a given geometry replaces what the file echoes (a print file's bulk data): its CD systems rotate once
+        kwargs.setdefault("echo", False)
     modes = info.reader(str(p), **kwargs)
     check_mode_values(modes, source=str(p))
     if geometry is not None:

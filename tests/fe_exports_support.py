@@ -94,11 +94,12 @@ def punch(modes, *, subcase: int = 1, title: str = "RAILMODAL TEST") -> str:
 
 # --------------------------------------------------------------------------------------------- Nastran print file
 def f06(modes, *, subcase: int = 1, gen_mass=None, rows_per_page: int = 50, title: str = "RAILMODAL TEST",
-        scalars=()) -> str:
+        scalars=(), echo=()) -> str:
     """An MSC Nastran ``.f06`` of a SOL 103 run: an echo page, the eigenvalue table, and one eigenvector table
     per mode broken over pages of ``rows_per_page`` grid rows (each page with its header and the mode's banner
     again). ``modes`` is [(mode number, eigenvalue (rad/s)^2, ids, (n, 6) values)]; ``gen_mass`` the generalized
-    masses printed (1 each by default); ``scalars`` scalar-point ids printed after the grids (one row, zeros)."""
+    masses printed (1 each by default); ``scalars`` scalar-point ids printed after the grids (one row, zeros);
+    ``echo`` small-field card images printed, sorted, as the sorted bulk data echo (pages of ``rows_per_page``)."""
     page = [0]
     out = []
 
@@ -111,6 +112,16 @@ def f06(modes, *, subcase: int = 1, gen_mass=None, rows_per_page: int = 50, titl
     out.append(f"1    {title:<60}DECEMBER   3, 2026  MSC Nastran  2/22/22   PAGE {page[0]:5d}\n")
     out.append("0        N A S T R A N    E X E C U T I V E    C O N T R O L    E C H O\n")
     out.append("     SOL 103\n     CEND\n")
+    cards = sorted(echo, key=lambda c: c[:8])
+    for start in range(0, len(cards), rows_per_page):
+        header()
+        out.append(f"0{'':49}S O R T E D   B U L K   D A T A   E C H O\n")
+        out.append(f"{'':17}ENTRY\n{'':17}COUNT        .   1  ..   2  ..   3  ..   4  ..   5  ..   6  ..   7  ..   8  "
+                   "..   9  ..  10  .\n")
+        for k, card in enumerate(cards[start:start + rows_per_page], start + 1):
+            out.append(f"{k:21d}-{'':8}{card}\n")
+    if cards:
+        out.append(f"{'':30}ENDDATA\n")
     header()
     out.append(f"{'':46}R E A L   E I G E N V A L U E S\n")
     out.append("   MODE    EXTRACTION      EIGENVALUE            RADIANS             CYCLES            GENERALIZED"

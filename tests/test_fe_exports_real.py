@@ -508,3 +508,37 @@ def test_d17_print_file_refusals_name_the_line(tmp_path, caplog):
     (tmp_path / "none.f06").write_text("".join(ln for ln in lines if "E I G E N V E C T O R" not in ln))
     with pytest.raises(fem_import.FEReadError, match=r"no real eigenvectors found .*DISPLACEMENT\(PRINT\)"):
         fem_import.read(tmp_path / "none.f06")
+
+
+def test_d17_a_print_file_with_its_bulk_data_echo_carries_its_geometry(tmp_path, caplog):
+    """ECHO = SORT, Nastran's default: the design export's grids and elements (CBAR, CQUAD4, CONM2 in small
+    field) echoed in the print file give it the universal file's coordinates (to the 5 µm of 8-column fields) and
+    mesh with no deck beside it; a deck given as geometry replaces the echo."""
+    fe = _design()
+    geo = fem_import.read_geometry(campaign_dir("control") / "fe_design.uff")
+    elements = [(e.element_id, e.fe_descriptor, e.nodes, e.physical_property) for e in geo.elements]
+    cards = fx.grids(geo.node_ids, geo.xyz, "small") + fx.element_cards(elements, lambda k: "small")
+    (tmp_path / "echo.f06").write_text(fx.f06(_f06_modes(fe), echo=cards))
+    got, where = fem_import.read_with_geometry(tmp_path / "echo.f06")
+    assert where == "node coordinates from echo.f06"
+    order = np.argsort(got.node_ids)
+    ref = np.argsort(fe.node_ids)
+    np.testing.assert_array_equal(got.node_ids[order], fe.node_ids[ref])
+    np.testing.assert_allclose(got.xyz[order], fe.xyz[ref], atol=1e-5)  # the echo's 8-column fields: 5 µm
+    np.testing.assert_allclose(got.shapes[:, order], fe.shapes[:, ref], rtol=1e-6, atol=1e-6 * np.abs(fe.shapes).max())
+    assert _mesh(got.elements) == _mesh(geo.elements)
+    # a deck given replaces the echo: shifted grids come from it
+    (tmp_path / "moved.bdf").write_text(fx.deck(fx.grids(fe.node_ids, fe.xyz + [0.0, 0.0, 0.5])))
+    moved = fem_import.read(tmp_path / "echo.f06", geometry=tmp_path / "moved.bdf")
+    np.testing.assert_allclose(np.sort(moved.xyz[:, 2]), np.sort(fe.xyz[:, 2] + 0.5), atol=1e-9)
+    # an echo that lacks grids of the eigenvectors is not used, and said
+    (tmp_path / "part.f06").write_text(fx.f06(_f06_modes(fe), echo=cards[5:]))
+    with caplog.at_level(logging.WARNING, logger="fem_import"):
+        part = fem_import.read(tmp_path / "part.f06")
+    assert not part.has_coordinates and "the bulk data echo does not give the geometry" in caplog.text
+    assert "CBAR 1 uses grid(s) [1001, 1002] that no GRID entry defines" in caplog.text
+    (tmp_path / "grids.f06").write_text(fx.f06(_f06_modes(fe), echo=cards[5:len(geo.node_ids)]))
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="fem_import"):
+        assert not fem_import.read(tmp_path / "grids.f06").has_coordinates
+    assert "the bulk data echo lacks 5 grid(s) of the eigenvectors (first [1001," in caplog.text
