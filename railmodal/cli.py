@@ -189,7 +189,8 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     step(f"identifying (LSCE to order {args.max_order}, automatic pole selection, LSFD)")
     result = ema.identify(frf, band_hz=band, max_order=args.max_order, setup=setup)
     modes = result.modes
-    for finding in driving_point_findings(driving_point_checks(modes, full_table), source=setup):
+    checks = driving_point_checks(modes, full_table)
+    for finding in driving_point_findings(checks, source=setup):
         logging.getLogger("ema").warning("%s", finding)
     with staged_output(out) as tmp:  # write last: --out gets the results only when everything succeeded
         write_modeset(modes, tmp)
@@ -206,6 +207,9 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     print(f"{len(modes)} modes identified in {setup!r} ({time.perf_counter() - t0:.1f} s):")
     for f, z, m in zip(modes.freqs_hz, modes.zeta, modes.mpc):
         print(f"  {f:9.3f} Hz  zeta {100 * z:.4f} %  MPC {m:.3f}")
+    for c in checks:
+        print(f"driving point {c.channel!r}: {c.verdict} ({c.n_modes - c.n_wrong} of {c.n_modes} modal constants of "
+              f"the sign a driving point must have)")
     print(f"written: {out / 'modes.csv'}, {out / 'modes.uff'}, {out / 'stabilisation.png'}, {out / 'synthesis.png'}"
           + (f", {out / 'screening.csv'}" if screening is not None else ""))
     return 0

@@ -91,7 +91,7 @@ def test_a_sensor_across_the_hammer_is_no_driving_point(records):
     assert check.angle_deg == pytest.approx(25.0) and check.verdict == "consistent"
 
 
-def test_lab_identify_warns_of_a_reversed_hammer(records, tmp_path, caplog):
+def test_lab_identify_warns_of_a_reversed_hammer(records, tmp_path, caplog, capsys):
     """Through the CLI: the UFF58 written from the negated records, the warning names setup and channel."""
     from lab_data.uff_export import TimeHistory, write_time_histories
 
@@ -112,3 +112,5 @@ def test_lab_identify_warns_of_a_reversed_hammer(records, tmp_path, caplog):
     assert code == 0
     warned = [r.getMessage() for r in caplog.records if "driving point" in r.getMessage()]
     assert len(warned) == 1 and "channel 'drive' at the hammer's node 101" in warned[0], warned
+    assert "driving point 'drive': reversed (0 of 4 modal constants of the sign a driving point must have)" in \
+        capsys.readouterr().out
