@@ -47,6 +47,7 @@ import numpy as np
 
 from .errors import FEReadError
 from .modes import FEModes
+from .nastran_modes import frequencies, grid_shapes, select_subcase
 from .registry import register_format
 
 __all__ = ["read_f06", "sniff_f06"]
@@ -222,40 +223,10 @@ def read_f06(path: str, *, subcase: int | str | None = None, echo: bool = True) 
     if not modes:
         raise FEReadError(path, "no real eigenvectors found (expected 'R E A L   E I G E N V E C T O R   N O .' "
                           "tables: a SOL 103 run with DISPLACEMENT(PRINT) = ALL or VECTOR = ALL)")
-    subcases = sorted({m.subcase for m in modes}, key=lambda s: (s is None, s))
-    if len(subcases) > 1 and subcase is None:
-        raise FEReadError(path, f"eigenvectors of {len(subcases)} subcases {subcases}; choose one: "
-                          f"fem_import.read(path, subcase=N) in Python (the command line reads the lowest)")
-    if subcase is None or subcase == "lowest":
-        chosen = subcases[0]
-        if len(subcases) > 1:
-            log.warning("%s: eigenvectors of %d subcases %s; subcase %s is read", path, len(subcases), subcases,
-                        chosen)
-    else:
-        if subcase not in subcases:
-            raise FEReadError(path, f"subcase {subcase!r} is not in the file; it has subcases {subcases}")
-        chosen = subcase
-    modes = sorted((m for m in modes if m.subcase == chosen), key=lambda m: m.number)
-    first = modes[0]
-    ref_ids = np.asarray(first.ids, np.int64)
-    shapes = np.empty((len(modes), ref_ids.size, 6))
-    for j, m in enumerate(modes):
-        if not m.ids:
-            raise FEReadError(path, f"eigenvector {m.number} has no grid rows (truncated file?)", line=m.line)
-        ids = np.asarray(m.ids, np.int64)
-        uniq, counts = np.unique(ids, return_counts=True)
-        if np.any(counts > 1):
-            raise FEReadError(path, f"eigenvector {m.number} prints grid(s) {uniq[counts > 1][:10].tolist()} more "
-                              f"than once", line=m.line)
-        if ids.size != ref_ids.size or set(m.ids) != set(first.ids):
-            missing = sorted(set(first.ids) - set(m.ids))
-            extra = sorted(set(m.ids) - set(first.ids))
-            what = (f"lacks grid(s) {missing[:10]} of eigenvector {first.number}" if missing
-                    else f"has grid(s) {extra[:10]} absent from eigenvector {first.number}")
-            raise FEReadError(path, f"eigenvector {m.number} {what} (truncated file?): all modes must cover the same "
-                              f"grids", line=m.line)
-        order = np.argsort(ids, kind="stable")
-        shapes[j] = np.asarray(m.vals, float)[order[np.searchsorted(ids, ref_ids, sorter=order)]]
+    chosen_modes = select_subcase(path, modes, subcase, "print file")
+    chosen = chosen_modes[0].subcase
+    modes = sorted(chosen_modes, key=lambda m: m.number)
+    ref_ids, shapes = grid_shapes(path, modes, "eigenvector")
     numbers = [m.number for m in modes]
     history = [f"read {len(modes)} modes ({numbers[0]}..{numbers[-1]}, subcase {chosen}) on {ref_ids.size} grids "
                f"from Nastran print file {path}; no geometry in the file"]
@@ -278,13 +249,8 @@ def read_f06(path: str, *, subcase: int | str | None = None, echo: bool = True) 
                  missing[:10])
         history.append(f"no generalized mass printed for mode(s) {missing[:10]}: taken as mass-normalised "
                        f"(NORM=MASS, Nastran's default)")
-    lam = np.array([m.eigenvalue for m in modes])
-    big_neg = np.flatnonzero(lam < -(2 * math.pi * 0.1) ** 2)
-    if big_neg.size:
-        log.warning("%s: mode(s) %s have negative eigenvalues %s (below -(2 pi 0.1 Hz)^2); set to 0 Hz", path,
-                    [numbers[k] for k in big_neg], lam[big_neg].tolist())
     fe = FEModes(node_ids=ref_ids, xyz=np.full((ref_ids.size, 3), np.nan), elements=(),
-                 freqs_hz=np.sqrt(np.maximum(lam, 0.0)) / (2 * math.pi), shapes=shapes,
+                 freqs_hz=frequencies(path, modes), shapes=shapes,
                  modal_mass=np.ones(len(modes)), source=str(path), format="nastran-f06",
                  units="SI (m, kg, s) assumed (a print file does not state units)", history=tuple(history),
                  mode_numbers=np.asarray(numbers, np.int64))

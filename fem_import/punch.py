@@ -45,6 +45,7 @@ import numpy as np
 
 from .errors import FEReadError
 from .modes import FEModes
+from .nastran_modes import frequencies, grid_shapes, select_subcase
 from .registry import register_format
 
 __all__ = ["read_punch", "sniff_punch"]
@@ -262,27 +263,7 @@ def read_punch(path: str, *, subcase: int | str | None = None) -> FEModes:
     if not modes:
         raise FEReadError(path, "no real eigenvectors found (expected '$EIGENVECTOR', '$REAL OUTPUT' and "
                           "'$EIGENVALUE' header cards followed by grid cards)")
-    subcases = sorted({m.subcase for m in modes}, key=lambda s: (s is None, s))
-    if subcase is None or (isinstance(subcase, str) and subcase == "lowest"):
-        if len(subcases) > 1:
-            def band(s):
-                f = [math.sqrt(max(m.eigenvalue, 0.0)) / (2 * math.pi) for m in modes if m.subcase == s]
-                return f"subcase {s}: {len(f)} modes, {min(f):.4g}-{max(f):.4g} Hz"
-
-            what = "; ".join(band(s) for s in subcases)
-            if subcase is None:
-                raise FEReadError(path, f"eigenvectors of {len(subcases)} subcases {subcases} ({what}); choose one: "
-                                  f"fem_import.read(path, subcase=N) in Python (the command line reads the lowest, "
-                                  f"subcase {subcases[0]}, with a warning)")
-            log.warning("%s: eigenvectors of %d subcases %s (%s); subcase %s is read. Another one: "
-                        "fem_import.read(path, subcase=N) or fem_import.read_with_geometry(path, subcase=N) in "
-                        "Python; the command line has no subcase option: write a punch file of that subcase alone",
-                        path, len(subcases), subcases, what, subcases[0])
-            modes = [m for m in modes if m.subcase == subcases[0]]
-    else:
-        if subcase not in subcases:
-            raise FEReadError(path, f"subcase {subcase!r} is not in the file; it has subcases {subcases}")
-        modes = [m for m in modes if m.subcase == subcase]
+    modes = select_subcase(path, modes, subcase, "punch file")
 
     # Two punch runs concatenated (or a block pasted twice) give MODE 1, 2, 3, 1, 2, 3 in one subcase: read in
     # file order they would be six modes, three of them spurious, and pairing would take them as real.
@@ -293,40 +274,8 @@ def read_punch(path: str, *, subcase: int | str | None = None) -> FEModes:
                               f"{m.subcase if m.subcase is not None else 'not given'}); a mode number may appear "
                               f"once per subcase: are two punch files concatenated?", line=m.line)
         given[m.number] = m.line
-    first = modes[0]
-    for m in modes:
-        if not m.ids:
-            raise FEReadError(path, f"mode {m.number} has no grid cards (truncated file?)", line=m.line)
-        ids = np.asarray(m.ids, np.int64)
-        uniq, counts = np.unique(ids, return_counts=True)
-        if np.any(counts > 1):
-            raise FEReadError(path, f"mode {m.number} lists grid(s) {uniq[counts > 1][:10].tolist()} more "
-                              f"than once", line=m.line)
-        vals = np.asarray(m.vals, float)
-        bad = ~np.all(np.isfinite(vals), axis=1)
-        if np.any(bad):
-            raise FEReadError(path, f"mode {m.number} has non-finite values at grid {m.ids[int(np.argmax(bad))]}",
-                              line=m.line)
-    ref_ids = np.asarray(first.ids, np.int64)
-    ref = set(first.ids)
-    shapes = np.empty((len(modes), ref_ids.size, 6))
-    for j, m in enumerate(modes):
-        ids = np.asarray(m.ids, np.int64)
-        if len(m.ids) != ref_ids.size or set(m.ids) != ref:
-            missing = sorted(ref - set(m.ids))
-            extra = sorted(set(m.ids) - ref)
-            what = (f"lacks grid(s) {missing[:10]} of mode {first.number}" if missing
-                    else f"has grid(s) {extra[:10]} absent from mode {first.number}")
-            raise FEReadError(path, f"mode {m.number} {what} (truncated file?): all modes must cover the same "
-                              f"grids", line=m.line)
-        order = np.argsort(ids, kind="stable")
-        shapes[j] = np.asarray(m.vals, float)[order[np.searchsorted(ids, ref_ids, sorter=order)]]
-    lam = np.array([m.eigenvalue for m in modes])
-    big_neg = np.flatnonzero(lam < -(2 * math.pi * 0.1) ** 2)
-    if big_neg.size:
-        log.warning("%s: mode(s) %s have negative eigenvalues %s (below -(2 pi 0.1 Hz)^2); set to 0 Hz", path,
-                    [modes[k].number for k in big_neg], lam[big_neg].tolist())
-    freqs = np.sqrt(np.maximum(lam, 0.0)) / (2 * math.pi)
+    ref_ids, shapes = grid_shapes(path, modes)
+    freqs = frequencies(path, modes)
     numbers = [m.number for m in modes]
     history = (f"read {len(modes)} modes (MODE {numbers[0]}..{numbers[-1]}, subcase {modes[0].subcase}) on "
                f"{ref_ids.size} grids from Nastran punch {path}; no geometry in the file",)
