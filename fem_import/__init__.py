@@ -61,7 +61,7 @@ from .registry import (
     register_format,
     unregister_format,
 )
-from . import uff as _uff, punch as _punch, f06 as _f06, nastran_bulk as _bulk  # noqa: E402,F401  (the built-in readers)
+from . import uff as _uff, punch as _punch, f06 as _f06, nastran_bulk as _bulk  # noqa: E402,F401  (built-in readers)
 from .checks import (  # noqa: E402
     MassNormalisationError,
     RigidBodyMass,
