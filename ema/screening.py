@@ -566,14 +566,15 @@ def screen_hits(
 
     # ---- clipped before the converter's filter: the peak against the one the other hits predict
     ratio, predicted = peak_compression(test, accepted, f_rest, rest)
-    for h, j in zip(*np.nonzero(ratio < cfg.min_peak_ratio)):
+    rounded = np.nan_to_num(ratio, nan=np.inf) < cfg.min_peak_ratio  # NaN: no verdict
+    for h, j in zip(*np.nonzero(rounded)):
         others = int(accepted[:, j].sum()) - 1
         reject(test.hits[h], j, "clipped",
                f"peak {np.abs(test.responses[h, j] - rest[h, j]).max():.4g} m/s^2 is {ratio[h, j]:.2f} x the "
                f"{predicted[h, j]:.4g} m/s^2 its force predicts through the other {others} hits' FRF, at the "
                f"record's own scale (limit {cfg.min_peak_ratio:g} x): clipped before the converter's filter, which "
                "rounds the flat top (the input range set too low for this hit)")
-    accepted &= ~(ratio < cfg.min_peak_ratio)
+    accepted &= ~rounded
 
     # ---- levels: per unit force across hits, and against the neighbouring sensors
     _check_levels(test, cfg, accepted, pulse_rms, level, reject)
