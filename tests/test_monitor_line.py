@@ -24,6 +24,10 @@ BANDS = ("30-100", "100-300")
 PATCH = (510.0, 670.0)  # the corrugation patch C1_low on rail R (500-680 m) without its 10 m tapers
 
 
+#: the progress messages of the module's ingest (what the command line's bar shows)
+PROGRESS: list[str] = []
+
+
 @pytest.fixture(scope="module")
 def line_store(tmp_path_factory):
     from lab_data.line.cache import line_campaign_dir
@@ -39,7 +43,8 @@ def line_store(tmp_path_factory):
                       monitoring=MonitoringConfig(n_perturbed=0, uncertainty_runs=0))
     logging.getLogger("estimator").setLevel(logging.ERROR)
     st = MonitoringStore(d / "store")
-    res = ingest(sorted((camp / "runs").rglob("*.mf4")), spec, st)
+    PROGRESS.clear()
+    res = ingest(sorted((camp / "runs").rglob("*.mf4")), spec, st, progress=lambda a, b, m: PROGRESS.append(m))
     return camp, spec, st, res
 
 
@@ -109,6 +114,11 @@ def test_a_run_whose_wheelbase_is_refused_is_processed_with_its_bogies(line_stor
     assert r.drop(index="20240304_03_fw")["wheelbase_source"].str.startswith("measured").all()
     assert np.all(np.abs(r["wheelbase_m"] - true_wb) <= 0.005)
     assert st.read("failures").empty  # its first failure was replaced, not kept beside its rows
+    # and the progress said it was deferred, not failed
+    first = [m for m in PROGRESS if m.startswith("20240304_03_fw")]
+    assert first[0] == ("20240304_03_fw: wheelbase not measured on this run; deferred until its bogie's other runs "
+                        "give it") and first[-1].startswith("20240304_03_fw (2024-03-04) done in")
+    assert not any("FAILED" in m for m in PROGRESS)
 
 
 def test_the_day_average_of_the_corrugated_curve_is_the_true_band_peak_to_peak(line_store):

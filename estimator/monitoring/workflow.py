@@ -574,7 +574,11 @@ def ingest(runs: Sequence, spec: IngestSpec, store, *, executor=None,
             except RunIdCollision as exc:  # another ingest stored a different run under this name meanwhile
                 r = refusal(r, str(exc))
         latest[r.path] = r
-        if not r.ok:
+        if not r.ok and is_wheelbase_failure(r.error_type):
+            # step 4 below processes it again with the wheelbase its bogie's other runs measure
+            say(done, total, f"{r.run_id}: wheelbase not measured on this run; deferred until its bogie's other "
+                             "runs give it")
+        elif not r.ok:
             say(done, total, f"{r.run_id}: FAILED ({r.error})")
         elif not r.aligned:
             say(done, total, f"{r.run_id}: rejected ({r.reason})")
