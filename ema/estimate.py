@@ -173,7 +173,8 @@ def _pulses(test: HammerTest, level: float) -> list[tuple[int, int, int, float]]
 MIN_PRETRIGGER_SAMPLES = 16
 
 
-def rest_values(test: HammerTest, level: float = 0.05) -> tuple[np.ndarray, np.ndarray]:
+def rest_values(test: HammerTest, level: float = 0.05, *, pulses: list | None = None
+                ) -> tuple[np.ndarray, np.ndarray]:
     """The rest value of every record, from its pre-trigger: ``(force (n_hits,), responses (n_hits, n_ch))``.
 
     A DC-coupled accelerometer records gravity or its bias as a constant, which the exponential window turns into
@@ -182,11 +183,12 @@ def rest_values(test: HammerTest, level: float = 0.05) -> tuple[np.ndarray, np.n
     input would; the records stay as read. The rest value is the median of the samples before the main pulse, ending
     one pulse width before its start (:func:`main_pulse`): before the hit the structure is at rest, whereas over the
     whole record a slow rig swing or a response not yet decayed moves the median off the rest value. A hit with
-    fewer than :data:`MIN_PRETRIGGER_SAMPLES` such samples is taken about zero.
+    fewer than :data:`MIN_PRETRIGGER_SAMPLES` such samples is taken about zero. ``pulses``: the hits'
+    :func:`main_pulse` at ``level`` when the caller has them already.
     """
     f_rest = np.zeros(test.n_hits)
     a_rest = np.zeros((test.n_hits, test.n_channels))
-    for h, (start, _, end, _) in enumerate(_pulses(test, level)):
+    for h, (start, _, end, _) in enumerate(_pulses(test, level) if pulses is None else pulses):
         stop = start - (end - start + 1)
         if stop >= MIN_PRETRIGGER_SAMPLES:
             f_rest[h] = np.median(test.force[h, :stop])
@@ -283,12 +285,13 @@ def _spectra(test: HammerTest, accepted: np.ndarray, band_hz: tuple[float, float
     saa = np.zeros((nch, nf))
     level = fwin.level if fwin is not None else 0.05
     n = test.n_samples
-    f_rest, a_rest = rest_values(test, level)
+    pulses = _pulses(test, level)
+    f_rest, a_rest = rest_values(test, level, pulses=pulses)
     for h in range(test.n_hits):
         m = accepted[h]
         if not m.any():
             continue
-        start, _, end, _ = main_pulse(test.force[h], level)
+        start, _, end, _ = pulses[h]
         w_exp = exponential_window(test.time, float(test.time[start]), decay) if decay > 0 else np.ones(n)
         w_f = w_exp if fwin is None else w_exp * force_window(n, test.fs, start, end, fwin)
         F = np.fft.rfft((test.force[h] - f_rest[h]) * w_f)[idx]

@@ -559,7 +559,7 @@ def screen_hits(
                 accepted[h, j] = False
 
     # ---- DC offsets (named, not rejected: the spectra and levels are taken about them)
-    f_rest, rest = rest_values(test, cfg.pulse_level)
+    f_rest, rest = rest_values(test, cfg.pulse_level, pulses=pulses)
     with np.errstate(over="ignore", invalid="ignore"):
         level = np.sqrt(np.mean(np.square(test.responses - rest[:, :, None]), axis=2))
     _report_offsets(test, rest, level)
