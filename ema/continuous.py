@@ -23,6 +23,10 @@ finds the impacts in the force and cuts every channel into one record per impact
 
 Only a test of one record (one hit) holding at least :data:`MIN_IMPACTS` impacts is cut: two pulses in one
 triggered record are a double hit, not two hits.
+
+Several files of one setup (:func:`ema.read_hammer` given a list) share one record length: continuous files are
+cut at the shortest length any of them gives on its own (:func:`continuous_record_length`), or at the triggered
+files' record length when some are triggered, provided every continuous file's impacts are that far apart.
 """
 
 from __future__ import annotations
@@ -35,8 +39,8 @@ from scipy.ndimage import median_filter
 
 from .hammer_io import HammerTest
 
-__all__ = ["find_impacts", "split_continuous", "IMPACT_LEVEL", "NOISE_FACTOR", "MIN_HIT_SEPARATION_S",
-           "PRE_TRIGGER_SHARE", "MIN_IMPACTS", "MIN_LAST_SHARE", "SINGLE_SAMPLE_LEVEL"]
+__all__ = ["find_impacts", "split_continuous", "continuous_record_length", "IMPACT_LEVEL", "NOISE_FACTOR",
+           "MIN_HIT_SEPARATION_S", "PRE_TRIGGER_SHARE", "MIN_IMPACTS", "MIN_LAST_SHARE", "SINGLE_SAMPLE_LEVEL"]
 
 log = logging.getLogger("ema")
 
@@ -85,12 +89,53 @@ def find_impacts(force: np.ndarray, fs: float) -> np.ndarray:
     return peaks[~single]
 
 
-def split_continuous(test: HammerTest) -> HammerTest:
+def _impacts(test: HammerTest) -> tuple[np.ndarray, np.ndarray] | None:
+    """The impacts and corrupt single samples of a continuous recording; None when the test is not one."""
+    if test.n_hits != 1:
+        return None
+    peaks, single = _pulses(test.force[0], test.fs)
+    if int((~single).sum()) < MIN_IMPACTS:
+        return None
+    return peaks[~single], peaks[single]
+
+
+def _natural_length(test: HammerTest, peaks: np.ndarray) -> int:
+    """The record length a recording gives on its own: the shortest spacing, or less to keep the last impact."""
+    length = int(np.min(np.diff(peaks)))
+    tail = test.n_samples - int(peaks[-1])
+    if MIN_LAST_SHARE * (length - _pre_trigger(length, peaks)) <= tail < length - _pre_trigger(length, peaks):
+        # the longest record whose part after its own pre-trigger the tail holds
+        length = int(tail / (1.0 - PRE_TRIGGER_SHARE)) + 1
+        while length - _pre_trigger(length, peaks) > tail:
+            length -= 1
+    return length
+
+
+def _pre_trigger(length: int, peaks: np.ndarray) -> int:
+    """Samples before each impact in a record of ``length``: its share, or less when the first impact is sooner."""
+    return min(int(round(PRE_TRIGGER_SHARE * length)), int(peaks[0]))
+
+
+def continuous_record_length(test: HammerTest) -> int | None:
+    """Samples per hit :func:`split_continuous` would cut ``test`` into; None when it is no continuous recording.
+
+    Several continuous files of one setup are cut at the shortest of their lengths, so that all their hits
+    average into one FFT (:func:`ema.read_hammer` with a list of files).
+    """
+    found = _impacts(test)
+    return None if found is None else _natural_length(test, found[0])
+
+
+def split_continuous(test: HammerTest, length: int | None = None) -> HammerTest:
     """The test cut into one hit per impact when its one record is a continuous recording; else the test as is.
 
     Parameters
     ----------
     test : HammerTest
+    length : int, optional
+        Samples per cut record; by default the recording's own (the shortest spacing between its impacts, see
+        the module docstring). A given length longer than that spacing would put two impacts in one record:
+        ``ValueError``. Impacts without a whole record after their pre-trigger are left out with a WARNING.
 
     Returns
     -------
@@ -98,21 +143,22 @@ def split_continuous(test: HammerTest) -> HammerTest:
         Hits numbered 1, 2, ... in time order; the cut recorded in ``history`` and logged (WARNING, with the
         impacts' times and the record length).
     """
-    if test.n_hits != 1:
+    found = _impacts(test)
+    if found is None:
         return test
-    peaks, single = _pulses(test.force[0], test.fs)
-    if int((~single).sum()) < MIN_IMPACTS:
-        return test
+    peaks, corrupt = found
     src = test.source or "hammer test"
-    for k in peaks[single]:
+    for k in corrupt:
         log.warning("%s: a single force sample of %.4g N at t = %.4f s is no hammer pulse (a corrupt sample): not "
                     "taken as an impact", src, test.force[0][k], test.time[0] + k / test.fs)
-    peaks = peaks[~single]
-    length = int(np.min(np.diff(peaks)))
-    pre = min(int(round(PRE_TRIGGER_SHARE * length)), int(peaks[0]))
-    tail = test.n_samples - int(peaks[-1])
-    if MIN_LAST_SHARE * (length - pre) <= tail < length - pre:
-        length = tail + pre
+    spacing = int(np.min(np.diff(peaks)))
+    if length is None:
+        length = _natural_length(test, peaks)
+    elif length > spacing:
+        raise ValueError(f"{src}: records of {length / test.fs:.3f} s asked for, but impacts come "
+                         f"{spacing / test.fs:.3f} s apart: a record would hold two impacts")
+    length = int(length)
+    pre = _pre_trigger(length, peaks)
     starts = peaks - pre
     fits = starts + length <= test.n_samples
     for k in np.flatnonzero(~fits):

@@ -1314,6 +1314,33 @@ def _read_one(path: Path, table: pd.DataFrame, format: str | None) -> HammerTest
     return HAMMER_FORMATS[format][1](path, table)
 
 
+def _cut_continuous(tests: list[HammerTest]) -> list[HammerTest]:
+    """Continuous recordings among several files cut into hits of one record length, so all hits share one FFT.
+
+    The length is the triggered files' record length when there are any (a continuous file whose impacts come
+    sooner than that is refused), else the shortest any continuous file gives on its own.
+    """
+    from .continuous import continuous_record_length, split_continuous
+
+    lengths = [continuous_record_length(t) for t in tests]
+    if all(n is None for n in lengths):
+        return tests
+    triggered = [t for t, n in zip(tests, lengths) if n is None]
+    length = triggered[0].n_samples if triggered else min(n for n in lengths if n is not None)
+    out = []
+    for t, n in zip(tests, lengths):
+        if n is None:
+            out.append(t)
+            continue
+        try:
+            out.append(split_continuous(t, length=length))
+        except ValueError as exc:
+            raise SamplingError(f"{exc}; {triggered[0].source} has triggered records of {length} samples "
+                                f"({length / t.fs:.3f} s), so the continuous file's hits cannot be cut to match "
+                                f"them: record the setup one way, or give its files separately") from None
+    return out
+
+
 def _read_several(paths: list[Path], channels_csv, format: str | None) -> HammerTest:
     """Several files of one setup as one test: the same table, one sampling, hits concatenated and renumbered."""
     seen: dict[Path, int] = {}
@@ -1326,7 +1353,7 @@ def _read_several(paths: list[Path], channels_csv, format: str | None) -> Hammer
                              f"would be averaged in twice")
         seen[r] = k
     table = _table(channels_csv, paths[0])
-    tests = [_read_one(q, table, format) for q in paths]
+    tests = _cut_continuous([_read_one(q, table, format) for q in paths])
     first = tests[0]
     for t in tests[1:]:
         if abs(t.fs - first.fs) > 1e-9 * first.fs:

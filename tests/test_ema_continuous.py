@@ -32,12 +32,12 @@ def table() -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def continuous(duration=8.0, rebound_after=2, seed=4):
-    """One record: an impact at each of IMPACTS (sizes 700-1300 N), a rebound 6 ms after impact ``rebound_after``."""
+def continuous(duration=8.0, rebound_after=2, seed=4, impacts=IMPACTS):
+    """One record: an impact at each of ``impacts`` (700-1300 N), a rebound 6 ms after impact ``rebound_after``."""
     rng = np.random.default_rng(seed)
-    pulses = [Pulse(t, 6e-4, rng.uniform(700, 1300)) for t in IMPACTS]
+    pulses = [Pulse(t, 6e-4, rng.uniform(700, 1300)) for t in impacts]
     if rebound_after is not None:
-        pulses.append(Pulse(IMPACTS[rebound_after] + 6e-3, 6e-4, 400.0))
+        pulses.append(Pulse(impacts[rebound_after] + 6e-3, 6e-4, 400.0))
     _, f, a = synthesize_hit(TRUTH, pulses, fs=FS, duration=duration)
     f = quantise(add_noise(f, 0.05, rng), 10000.0)[0]
     a = quantise(add_noise(a, 5e-4, rng), 50.0)[0]
@@ -95,7 +95,7 @@ def test_a_last_impact_without_most_of_a_record_is_left_out_by_name(caplog):
     assert "the impact at t = 6.300 s is followed by 0.700 s of record, less than the 1.188 s" in msg
     # 1.0 s after it is 84 % of a record: every record is shortened to keep that hit
     cut = split_continuous(continuous(duration=7.3 + 3e-4, rebound_after=None))
-    assert cut.n_hits == 5 and cut.n_samples == round((1.0 + PRE_TRIGGER_SHARE * 1.25) * FS)
+    assert cut.n_hits == 5 and cut.n_samples == int(1.0 * FS / (1 - PRE_TRIGGER_SHARE))
 
 
 def test_a_triggered_record_with_a_rebound_or_two_hits_is_not_cut():
@@ -108,6 +108,49 @@ def test_a_triggered_record_with_a_rebound_or_two_hits_is_not_cut():
     many = ema.HammerTest.from_arrays(np.repeat(many.force, 2, axis=0), np.repeat(many.responses, 2, axis=0), FS,
                                       table())
     assert split_continuous(many) is many
+
+
+def write_uff(test: ema.HammerTest, path) -> None:
+    """Each hit's records as UFF 58 datasets, as a front end exports them."""
+    from lab_data.uff_export import TimeHistory, write_time_histories
+
+    hist = []
+    for h, hit in enumerate(test.hits):
+        hist.append(TimeHistory(hit, 900, 0, "force", "N", "hammer", test.dt, test.force[h].astype(np.float32), 900,
+                                0))
+        hist += [TimeHistory(hit, 101 + j, 0, "acceleration", "m/s^2", f"ch{j}", test.dt,
+                             test.responses[h, j].astype(np.float32), 900, 0) for j in range(3)]
+    write_time_histories(path, hist)
+
+
+def test_several_continuous_files_are_cut_at_one_record_length(tmp_path, caplog):
+    """Two continuous files whose impacts are 1.25 s and 0.9 s apart at the closest: all hits at 0.9 s."""
+    table().to_csv(tmp_path / "channels.csv", index=False)
+    write_uff(continuous(), tmp_path / "a.uff")
+    write_uff(continuous(duration=4.5, rebound_after=None, seed=5, impacts=(0.2, 1.4, 2.3, 3.5)), tmp_path / "b.uff")
+    with caplog.at_level(logging.WARNING, logger="ema"):
+        test = ema.read_hammer([tmp_path / "a.uff", tmp_path / "b.uff"], tmp_path / "channels.csv")
+    assert test.n_hits == 9 and test.n_samples == round(0.9 * FS)
+    cuts = [r.getMessage() for r in caplog.records if "continuous recording" in r.getMessage()]
+    assert len(cuts) == 2 and all("hits of 0.900 s" in m for m in cuts)
+    screening = ema.screen_hits(test, band_hz=(20.0, 600.0))
+    assert [(r.hit, r.reason) for r in screening.rejections] == [(3, "double hit")]
+    frf = ema.estimate_frf(test, band_hz=(20.0, 600.0), screening=screening)
+    modes = ema.identify(frf, band_hz=(20.0, 600.0), max_order=20).modes
+    np.testing.assert_allclose(np.sort(modes.freqs_hz), TRUTH.freqs_hz, rtol=1e-3)
+
+
+def test_a_continuous_file_beside_triggered_ones_is_cut_at_their_record_length(tmp_path):
+    table().to_csv(tmp_path / "channels.csv", index=False)
+    write_uff(continuous(rebound_after=None), tmp_path / "cont.uff")
+    for name, seconds in (("short", 1.0), ("long", 1.5)):
+        _, f, a = synthesize_hit(TRUTH, [Pulse(0.05, 6e-4, 1000.0)], fs=FS, duration=seconds)
+        write_uff(ema.HammerTest.from_arrays(f[None], a[None], FS, table()), tmp_path / f"{name}.uff")
+    test = ema.read_hammer([tmp_path / "short.uff", tmp_path / "cont.uff"], tmp_path / "channels.csv")
+    assert test.n_hits == 6 and test.n_samples == round(1.0 * FS)
+    # impacts 1.25 s apart cannot give 1.5 s records: refused by name, not cut with two impacts in a record
+    with pytest.raises(ema.SamplingError, match=r"cont\.uff.*1\.250 s apart.*long\.uff has triggered records"):
+        ema.read_hammer([tmp_path / "long.uff", tmp_path / "cont.uff"], tmp_path / "channels.csv")
 
 
 def test_the_lab_campaign_recorded_continuously_identifies_as_the_triggered_file(tmp_path_factory, capsys):
@@ -127,9 +170,9 @@ def test_the_lab_campaign_recorded_continuously_identifies_as_the_triggered_file
              for j, r in acc.iterrows()]
     write_time_histories(folder / "continuous.uff", hist)
     cut = ema.read_hammer(folder / "continuous.uff", folder / "flexural_channels.csv")
-    # the recording stops 0.9 s after the last impact: every record is shortened to 50 ms + 0.9 s, not that hit
-    # left out
-    assert cut.n_hits == 4 and cut.n_samples == pytest.approx(0.95 * test.fs, abs=0.01 * test.fs)
+    # the recording stops 0.9 s after the last impact: every record is shortened to its 5 % pre-trigger + 0.9 s,
+    # not that hit left out
+    assert cut.n_hits == 4 and cut.n_samples == pytest.approx(0.9 / 0.95 * test.fs, abs=0.01 * test.fs)
     outs = []
     for name in ("flexural.uff", "continuous.uff"):
         out = folder / f"modes_{name[:4]}"
