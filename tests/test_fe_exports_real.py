@@ -456,9 +456,10 @@ def test_d17_a_print_file_gives_the_modes_of_the_universal_file(tmp_path, caplog
     np.testing.assert_allclose(got.xyz, fe.xyz, atol=1e-9)
     np.testing.assert_allclose(got.freqs_hz, fe.freqs_hz, rtol=1e-6, atol=1e-3)
     np.testing.assert_allclose(got.shapes, fe.shapes, rtol=1e-6, atol=1e-6 * np.abs(fe.shapes).max())
-    # the content decides, not the extension
-    shutil.copy(tmp_path / "ws.f06", tmp_path / "ws.txt")
-    assert fem_import.detect_format(tmp_path / "ws.txt").name == "nastran-f06"
+    # the content decides, not the extension: also under a deck's name, which puts the bulk sniffer first
+    for name in ("ws.txt", "ws.dat", "ws.bdf"):
+        shutil.copy(tmp_path / "ws.f06", tmp_path / name)
+        assert fem_import.detect_format(tmp_path / name).name == "nastran-f06"
 
 
 def test_d17_a_norm_max_run_is_mass_normalised_by_the_printed_generalized_mass(tmp_path):
