@@ -38,7 +38,9 @@ matters.
 
 Readers go through a small registry (like ObsPy's ``read``):
 :func:`read_hammer` sniffs the format and dispatches; an unknown format raises
-:class:`UnknownFormatError` listing the supported ones. Several files of one
+:class:`UnknownFormatError` listing the supported ones: UFF58 (this module) and
+the MDF files of data loggers (:mod:`ema.hammer_mdf`, a continuous recording
+that :mod:`ema.continuous` cuts into hits). Several files of one
 setup (one hit per file) are read as one test. In-memory data enter through
 :meth:`HammerTest.from_arrays`; both paths end in the same validated
 :class:`HammerTest`.
@@ -78,6 +80,7 @@ __all__ = [
     "HAMMER_FORMATS",
     "HammerDataError",
     "UFFReadError",
+    "MDFReadError",
     "UnknownFormatError",
     "FunctionTypeError",
     "ChannelMismatchError",
@@ -101,6 +104,10 @@ class HammerDataError(ValueError):
 
 class UFFReadError(HammerDataError):
     """A universal file that cannot be read: truncated, corrupt, or not a UFF at all."""
+
+
+class MDFReadError(HammerDataError):
+    """An MDF file asammdf cannot read (truncated, corrupt), or a channel block in it."""
 
 
 class UnknownFormatError(HammerDataError):
@@ -706,26 +713,33 @@ def _sampling(d: dict, p: str, name: str) -> tuple[float, float, float, float]:
 
 
 def _channel_scale(p: str, row, dsets: list[dict], has_sensitivity: bool) -> tuple[float, str, str]:
-    """``(factor to SI, label, kind)`` of one channel from its unit label in the file and the table's sensitivity.
+    """``(factor to SI, label, kind)`` of one UFF channel from its datasets' unit labels (:func:`unit_scale`).
 
-    ``kind`` is :func:`ema.channels.unit_kind`'s. A physical label converts by itself (the front end converted,
-    so the sensitivity is not applied); an electrical one (V, mV) is a raw voltage converted by the sensitivity
-    (``SI = recorded x sensitivity``) and refused without one; unlabelled data are multiplied by the sensitivity
-    when the table has one (else taken as SI); an unknown label is taken in the table's unit. A channel labelled
-    differently in different hits, or in a unit of the other quantity, is refused.
+    A channel labelled differently in different hits is refused.
     """
     labels = {str(d.get("ordinate_axis_units_lab", "") or "").strip() for d in dsets}
     if len(labels) > 1:
         raise ChannelMismatchError(f"{p}: channel {row.name!r} (node {row.node}) is in {sorted(labels)} in different "
                                    f"hits; one unit per channel")
-    lab = labels.pop()
+    first = dsets[0]
+    return unit_scale(p, row, labels.pop(), has_sensitivity, f"dataset {first['_index']} (hit {first.get('ver_num')})")
+
+
+def unit_scale(p: str, row, lab: str, has_sensitivity: bool, where: str) -> tuple[float, str, str]:
+    """``(factor to SI, label, kind)`` of one channel from its unit label in the file and the table's sensitivity.
+
+    ``kind`` is :func:`ema.channels.unit_kind`'s. A physical label converts by itself (the front end converted,
+    so the sensitivity is not applied); an electrical one (V, mV) is a raw voltage converted by the sensitivity
+    (``SI = recorded x sensitivity``) and refused without one; unlabelled data are multiplied by the sensitivity
+    when the table has one (else taken as SI); an unknown label is taken in the table's unit. A unit of the
+    other quantity is refused. ``where`` names the record in messages (``"dataset 12 (hit 3)"``).
+    """
     kind, factor = unit_kind(row.quantity, lab)
     sens = float(row.sensitivity) if has_sensitivity else None
-    first = dsets[0]
     if kind == "electrical":
         if sens is None:
             raise UnitSystemError(
-                f"{p}: dataset {first['_index']} (hit {first.get('ver_num')}), channel {row.name!r} (node {row.node}): "
+                f"{p}: {where}, channel {row.name!r} (node {row.node}): "
                 f"unit label {lab!r} is an electrical unit: the data are raw voltages, and the channel table has no "
                 f"'sensitivity' column to convert them to {row.unit}; add one (the factor on the recorded values: "
                 f"SI = recorded x sensitivity, e.g. 98.07 for a 10.2 mV/(m/s^2) accelerometer recorded in V, 444.4 "
@@ -736,7 +750,7 @@ def _channel_scale(p: str, row, dsets: list[dict], has_sensitivity: bool) -> tup
         return (sens if sens is not None else 1.0), lab, kind
     if kind == "other":
         raise UnitSystemError(
-            f"{p}: dataset {first['_index']} (hit {first.get('ver_num')}), channel {row.name!r} (node {row.node}) is "
+            f"{p}: {where}, channel {row.name!r} (node {row.node}) is "
             f"a {row.quantity} channel in the table, but its data are labelled {lab!r}, a unit of another quantity; "
             f"the table row or the file's channel is wrong"
         )
@@ -1108,16 +1122,8 @@ def _read_uff58(path: Path, channels: pd.DataFrame) -> HammerTest:
         force[i] = by_key[(hit, fkey)]["data"] * scale[fkey][0]
         for j, key in enumerate(acc_keys):
             resp[i, j] = by_key[(hit, key)]["data"] * scale[key][0]
-    history += _unit_notes(p, rows, scale, has_sens)
-    peak = float(np.median(np.abs(force).max(axis=1)))
-    if np.isfinite(peak) and peak > 0 and not _FORCE_PEAK_N[0] <= peak <= _FORCE_PEAK_N[1]:
-        # (NaN and all-zero forces are refused by HammerTest with their own message)
-        f_lab, f_kind = scale[fkey][1], scale[fkey][2]
-        log.warning("%s: the hammer force peaks at %.4g N (median over the hits), outside the %g N to %g N of an "
-                    "impact hammer: check the force channel's unit label (%s) and sensitivity%s", p, peak,
-                    _FORCE_PEAK_N[0], _FORCE_PEAK_N[1], repr(f_lab) if f_lab else "none",
-                    f" ({float(rows[fkey].sensitivity):.6g}: SI = recorded x sensitivity)"
-                    if has_sens and f_kind in ("raw", "electrical") else "")
+    history += unit_notes(p, rows, scale, has_sens)
+    check_force_peak(p, force, rows[fkey], scale[fkey], has_sens)
     _, t00, _, _ = sampling[ref["_index"]]
     test = HammerTest(fs=1.0 / dt0, time=_time_axis(t00, 1.0 / dt0, n0), channels=channels, force=force,
                       responses=resp, hits=tuple(hits), source=p, history=tuple(history))
@@ -1126,11 +1132,24 @@ def _read_uff58(path: Path, channels: pd.DataFrame) -> HammerTest:
     return test
 
 
+def check_force_peak(p: str, force: np.ndarray, row, scale: tuple[float, str, str], has_sens: bool) -> None:
+    """WARNING when the force's typical peak is no hammer's: a wrong unit label or sensitivity (not refused)."""
+    peak = float(np.median(np.abs(force).max(axis=1)))
+    if np.isfinite(peak) and peak > 0 and not _FORCE_PEAK_N[0] <= peak <= _FORCE_PEAK_N[1]:
+        # (NaN and all-zero forces are refused by HammerTest with their own message)
+        f_lab, f_kind = scale[1], scale[2]
+        log.warning("%s: the hammer force peaks at %.4g N (median over the hits), outside the %g N to %g N of an "
+                    "impact hammer: check the force channel's unit label (%s) and sensitivity%s", p, peak,
+                    _FORCE_PEAK_N[0], _FORCE_PEAK_N[1], repr(f_lab) if f_lab else "none",
+                    f" ({float(row.sensitivity):.6g}: SI = recorded x sensitivity)"
+                    if has_sens and f_kind in ("raw", "electrical") else "")
+
+
 def _channel_list(names: list[str], limit: int = 8) -> str:
     return ", ".join(names[:limit]) + (f" and {len(names) - limit} more" if len(names) > limit else "")
 
 
-def _unit_notes(p: str, rows: dict, scale: dict, has_sens: bool) -> list[str]:
+def unit_notes(p: str, rows: dict, scale: dict, has_sens: bool) -> list[str]:
     """Log what the unit labels and sensitivities did (once per label / case); return the history notes."""
     notes: list[str] = []
     converted = sorted({f"{rows[k].quantity} from {lab}" for k, (f, lab, kind) in scale.items()
@@ -1186,9 +1205,23 @@ def _sniff_uff(path: Path) -> bool:
     return False
 
 
+def _sniff_mdf(path: Path) -> bool:
+    from .hammer_mdf import sniff  # it builds on this module's types
+
+    return sniff(path)
+
+
+def _read_mdf(path: Path, table: pd.DataFrame) -> HammerTest:
+    from .hammer_mdf import read_hammer_mdf
+
+    return read_hammer_mdf(path, table)
+
+
 #: Registered hammer-test readers: format name -> (sniffer, reader, description).
 HAMMER_FORMATS: dict[str, tuple[Callable[[Path], bool], Callable[[Path, pd.DataFrame], HammerTest], str]] = {
     "uff58": (_sniff_uff, _read_uff58, "universal file, dataset 58/58b time histories (function type 1)"),
+    "mdf": (_sniff_mdf, _read_mdf,
+            "ASAM MDF 3/4 of a data logger (asammdf): one record per channel, found by the table's names"),
 }
 
 
@@ -1205,7 +1238,9 @@ def read_hammer(uff_path, channels_csv, *, format: str | None = None) -> HammerT
         The time-history file (UFF58/58b: one dataset per channel per hit,
         function type 1, hit number in the sequence-number field ``ver_num``,
         channel in ``rsp_node`` and, at a driving point, the specific data
-        type). Several files (a list or tuple) are the hits of one setup
+        type), or an MDF 3/4 file of a data logger (one record per channel,
+        named as the table's ``name`` column, :mod:`ema.hammer_mdf`). Several
+        files (a list or tuple) are the hits of one setup
         stored in several files (a lab that writes one hit per file): each is
         read and checked against the same channel table, they must share the
         sampling rate and record length, and their hits are concatenated in
@@ -1235,6 +1270,9 @@ def read_hammer(uff_path, channels_csv, *, format: str | None = None) -> HammerT
         Truncated or corrupt file (pyuff's errors are re-raised with the
         file name); a malformed record 6 (direction code outside -6..6,
         response node 0).
+    MDFReadError
+        An MDF file or channel asammdf cannot read (:mod:`ema.hammer_mdf`,
+        whose other refusals use the errors below).
     FunctionTypeError
         No time response (function type 1) in the file (datasets of other
         function types are skipped with an INFO log, and named when a table

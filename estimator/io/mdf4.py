@@ -9,15 +9,15 @@ the run header as ``<common_properties>`` of the header block's comment
 
 from __future__ import annotations
 
-import gc
 import logging
-import sys
 import xml.etree.ElementTree as ET
 from collections import Counter
 from pathlib import Path
 
 import numpy as np
 
+from ema.mdf_file import open_mdf as open_mdf_file
+from ema.mdf_file import sniff_mdf
 from estimator.errors import RunFileError
 from estimator.io.registry import RawChannel, RawRecording
 from estimator.io.sensors import normalise_unit
@@ -28,7 +28,7 @@ log = logging.getLogger("estimator")
 
 
 def sniff(path: Path, head: bytes) -> bool:
-    return head[:3] == b"MDF"
+    return sniff_mdf(head)
 
 
 class RepeatedHeaderKey(ValueError):
@@ -121,44 +121,15 @@ def run_header(mdf, path) -> dict[str, str]:
         raise RunFileError(f"{path}: {exc}; the run header (run_id, date, direction, ...) cannot be read") from None
 
 
-def _quiet_half_built_mdf(hook):
-    """An unraisable-exception hook that drops the AttributeError of a half-built asammdf ``MDF4.__del__``."""
-    def quiet(unraisable):
-        owner = getattr(unraisable.object, "__qualname__", "")
-        if unraisable.exc_type is AttributeError and owner.endswith("MDF4.__del__"):
-            return
-        hook(unraisable)
-    return quiet
-
-
 def open_mdf(path: Path):
     """``asammdf.MDF(path)`` of an MDF 4 file, or :class:`RunFileError` naming the file and asammdf's reason (or
-    the version of an MDF 3 file).
-
-    A damaged file leaves asammdf's reader half built; its ``__del__`` then fails on attributes ``__init__``
-    never set, and Python would print that traceback on the user's terminal after the named error. The object
-    is collected here with that one report silenced.
-    """
-    from asammdf import MDF
-
-    reason = None
-    hook = sys.unraisablehook
-    sys.unraisablehook = _quiet_half_built_mdf(hook)
-    try:
-        try:
-            mdf = MDF(str(path))
-        except Exception as exc:  # noqa: BLE001 - asammdf raises many kinds on a damaged file
-            reason = f"{type(exc).__name__}: {exc}"
-        else:
-            if int(str(mdf.version).split(".")[0]) >= 4:
-                return mdf
-            version = mdf.version
-            mdf.close()
-            raise RunFileError(f"{path}: MDF version {version}; the field contract uses MDF 4")
-        gc.collect()  # the half-built reader dies with the exception's frames
-    finally:
-        sys.unraisablehook = hook
-    raise RunFileError(f"{path}: not a readable MDF 4 file ({reason}); the file may be truncated or corrupt")
+    the version of an MDF 3 file); see :func:`ema.mdf_file.open_mdf`."""
+    mdf = open_mdf_file(path, RunFileError, "MDF 4 file")
+    if int(str(mdf.version).split(".")[0]) >= 4:
+        return mdf
+    version = mdf.version
+    mdf.close()
+    raise RunFileError(f"{path}: MDF version {version}; the field contract uses MDF 4")
 
 
 def _read(mdf, path: Path, name: str, group: int, index: int) -> RawChannel | str:
