@@ -15,7 +15,7 @@ import pandas as pd
 import pytest
 
 import ema
-from bad_inputs_support import SMALL_BAND, SMALL_ORDER, modes_csv, run, same_modes, small_campaign
+from bad_inputs_support import identify_small, modes_csv, same_modes, small_campaign
 from ema.hammer_io import UnitSystemError
 from lab_data.cache import campaign_dir
 from test_ema_continuous import FS, TRUTH, continuous, table
@@ -132,9 +132,7 @@ def test_the_lab_campaign_recorded_by_a_logger_identifies_as_the_triggered_file(
     outs = []
     for name in ("flexural.uff", "logger.mf4"):
         out = folder / f"modes_{name[:4]}"
-        code, _, err = run(["-q", "lab", "identify", "--hammer", str(folder / name), "--channels",
-                            str(folder / "flexural_channels.csv"), "--band", *SMALL_BAND, "--max-order", SMALL_ORDER,
-                            "--out", str(out)], capsys)
+        code, _, err = identify_small(folder, out, capsys, hammer=name)
         assert code == 0, err
         outs.append(modes_csv(out))
     assert same_modes(outs[1], outs[0]), outs
