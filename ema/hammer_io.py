@@ -1221,7 +1221,8 @@ def _read_mdf(path: Path, table: pd.DataFrame) -> HammerTest:
 HAMMER_FORMATS: dict[str, tuple[Callable[[Path], bool], Callable[[Path, pd.DataFrame], HammerTest], str]] = {
     "uff58": (_sniff_uff, _read_uff58, "universal file, dataset 58/58b time histories (function type 1)"),
     "mdf": (_sniff_mdf, _read_mdf,
-            "ASAM MDF 3/4 of a data logger (asammdf): one record per channel, found by the table's names"),
+            "ASAM MDF 3/4 of a data logger (asammdf): continuous or one record per trigger, "
+            "channels found by the table's names"),
 }
 
 
@@ -1238,8 +1239,9 @@ def read_hammer(uff_path, channels_csv, *, format: str | None = None) -> HammerT
         The time-history file (UFF58/58b: one dataset per channel per hit,
         function type 1, hit number in the sequence-number field ``ver_num``,
         channel in ``rsp_node`` and, at a driving point, the specific data
-        type), or an MDF 3/4 file of a data logger (one record per channel,
-        named as the table's ``name`` column, :mod:`ema.hammer_mdf`). Several
+        type), or an MDF 3/4 file of a data logger (channels named as the
+        table's ``name`` column; one continuous record per channel, or one
+        channel group per trigger, :mod:`ema.hammer_mdf`). Several
         files (a list or tuple) are the hits of one setup
         stored in several files (a lab that writes one hit per file): each is
         read and checked against the same channel table, they must share the

@@ -1,38 +1,58 @@
 """Reading a hammer test recorded by a data logger into an ASAM MDF file (MDF 3 or 4, through asammdf).
 
-Data loggers (the acquisition systems that write MDF: HBM, Dewesoft, IMC, Vector...) record a hammer test
-continuously: one long record per channel, the operator hitting the wheelset every few seconds.
-:func:`read_hammer_mdf` reads that record as a test of one hit; :func:`ema.read_hammer` then cuts it into one
-hit per impact (:mod:`ema.continuous`).
+Data loggers (the acquisition systems that write MDF: HBM, Dewesoft, IMC, Vector...) record a hammer test in one
+of two ways:
+
+* **continuously**: one long record per channel, the operator hitting the wheelset every few seconds.
+  :func:`read_hammer_mdf` reads it as a test of one hit; :func:`ema.read_hammer` then cuts it into one hit per
+  impact (:mod:`ema.continuous`);
+* **triggered**: one record per trigger, each written as its own channel group (or as one group per measuring
+  module and trigger) holding the same channel names. Each force record is one hit, numbered in time order
+  (in group order where the logger restarts the time stamps at every trigger); each response is the copy sampled
+  at that force record's instants, or, where several are, the one in the force's own group.
 
 The channel table (:mod:`ema.channels`) selects the channels **by name**: the row's ``name`` is the channel's
 name in the file (exactly, else the one file channel whose name differs only in case and surrounding blanks).
 Positions, directions and FE nodes come from the table, as for UFF; the samples, their time stamps and the
 unit (the channel's physical unit after asammdf applies its conversion) from the file. Units and sensitivities
-follow :func:`ema.hammer_io.unit_scale`, as for UFF.
+follow :func:`ema.hammer_io.unit_scale`, as for UFF. Copies of a channel with identical data (a logger's
+overview group beside its detail group) are one record.
 
-Refused by name (file and channel): a damaged file (:class:`~ema.hammer_io.MDFReadError`), a table channel the
-file lacks or holds twice with different data, values that are not numbers
-(:class:`~ema.hammer_io.ChannelMismatchError`); time stamps that are not evenly spaced (a gap where samples were
-lost), channels at another rate or on another time base than the force (:class:`~ema.hammer_io.SamplingError`).
-File channels without a table row are skipped with a WARNING naming them.
+Refused by name (file, channel, hit): a damaged file (:class:`~ema.hammer_io.MDFReadError`), a table channel the
+file lacks, two different records of a channel that could both be a hit's, a hit without one of the table's
+responses, a response record that belongs to no force record (nothing in the file is silently left out), values
+that are not numbers (:class:`~ema.hammer_io.ChannelMismatchError`); time stamps that are not evenly spaced (a
+gap where samples were lost), channels at another rate or on another time base than the force, triggered records
+of different lengths or rates (:class:`~ema.hammer_io.SamplingError`); a channel whose unit changes from hit to
+hit (:class:`~ema.hammer_io.UnitSystemError`). File channels without a table row are skipped with a WARNING
+naming them.
 """
 
 from __future__ import annotations
 
 import logging
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
 
-from .hammer_io import (ChannelMismatchError, HammerTest, MDFReadError, SamplingError, check_force_peak,
-                        unit_notes, unit_scale)
+from .hammer_io import (ChannelMismatchError, HammerTest, MDFReadError, SamplingError, UnitSystemError,
+                        check_force_peak, unit_notes, unit_scale)
 from .mdf_file import open_mdf, sniff_mdf
 
 __all__ = ["read_hammer_mdf", "sniff"]
 
 log = logging.getLogger("ema")
+
+
+class _Record(NamedTuple):
+    """One channel's record in one channel group: time stamps [s], values, unit, group index."""
+
+    t: np.ndarray
+    v: np.ndarray
+    unit: str
+    group: int
 
 
 def sniff(path: Path) -> bool:
@@ -49,10 +69,9 @@ def _file_name(wanted: str, names: list[str]) -> str | None:
     return near[0] if len(near) == 1 else None
 
 
-def _record(mdf, p: str, name: str, where: list[tuple[int, int]], masters: dict) -> tuple[np.ndarray, np.ndarray,
-                                                                                           str, int]:
-    """Time stamps, values, unit and group of one channel; several differing copies are refused."""
-    read = []
+def _copies(mdf, p: str, name: str, where: list[tuple[int, int]], masters: dict) -> list[_Record]:
+    """Every distinct record of one channel in the file (copies with the same data are one), in group order."""
+    read: list[_Record] = []
     for group, index in where:
         if index == masters.get(group):
             continue
@@ -65,15 +84,60 @@ def _record(mdf, p: str, name: str, where: list[tuple[int, int]], masters: dict)
         if values.dtype.kind not in "fiu":
             raise ChannelMismatchError(f"{p}: channel {name!r} (channel group {group}): its values are not numbers "
                                        f"({values.dtype}); a hammer test needs a force or acceleration signal")
-        read.append((np.asarray(sig.timestamps), values.astype(float), str(sig.unit or "").strip(), group))
-    first = read[0]
-    for other in read[1:]:
-        if not (other[0].shape == first[0].shape and np.array_equal(other[0], first[0])
-                and np.array_equal(other[1], first[1], equal_nan=True) and other[2] == first[2]):
-            raise ChannelMismatchError(f"{p}: channel groups {first[3]} and {other[3]} both hold a channel {name!r}, "
-                                       f"with different data; the table cannot say which one it means: rename one "
-                                       f"in the logger, or export the one of the test")
-    return first
+        rec = _Record(np.asarray(sig.timestamps), values.astype(float), str(sig.unit or "").strip(), group)
+        if not any(_same(rec, other) for other in read):
+            read.append(rec)
+    return read
+
+
+def _same(a: _Record, b: _Record) -> bool:
+    return (a.t.shape == b.t.shape and np.array_equal(a.t, b.t) and np.array_equal(a.v, b.v, equal_nan=True)
+            and a.unit == b.unit)
+
+
+def _span(t: np.ndarray) -> str:
+    return f"{float(t[0]):.6f}–{float(t[-1]):.6f} s" if t.size else "no samples"
+
+
+def _on_time_base(rec: _Record, ref: _Record, dt: float) -> bool:
+    """True when ``rec`` is sampled at ``ref``'s instants (same count, first and last stamps within 0.1 % dt)."""
+    return (rec.t.size == ref.t.size and abs(float(rec.t[0]) - float(ref.t[0])) <= 1e-3 * dt
+            and abs(float(rec.t[-1]) - float(ref.t[-1])) <= 1e-3 * dt)
+
+
+def _match(p: str, name: str, copies: list[_Record], force: _Record, fname: str, dt: float, hit: int,
+           n_hits: int) -> _Record:
+    """The record of channel ``name`` that belongs to the hit whose force record is ``force``.
+
+    The one copy sampled at the force's instants; where several are (a logger that restarts its time stamps at
+    every trigger), the one in the force's own channel group. None, or several without that, is refused.
+    """
+    timed = [c for c in copies if _on_time_base(c, force, dt)]
+    if len(timed) == 1:
+        return timed[0]
+    if timed:
+        own = [c for c in timed if c.group == force.group]
+        if n_hits > 1 and len(own) == 1:
+            return own[0]
+        raise ChannelMismatchError(f"{p}: channel groups {timed[0].group} and {timed[1].group} both hold a channel "
+                                   f"{name!r} on the force's time stamps, with different data; the table cannot say "
+                                   f"which one it means: rename one in the logger, or export the one of the test")
+    if n_hits == 1:
+        rec = copies[0]
+        t = rec.t
+        if t.size != force.t.size:
+            rate = (t.size - 1) / float(t[-1] - t[0]) if t.size > 1 and t[-1] > t[0] else float("nan")
+            raise SamplingError(f"{p}: channel {name!r} (channel group {rec.group}): {t.size} samples ({rate:.6g} Hz), "
+                                f"the force channel {fname!r} {force.t.size} ({1 / dt:.6g} Hz); force and "
+                                f"responses must be recorded at one rate over one span")
+        raise SamplingError(f"{p}: channel {name!r} (channel group {rec.group}) is sampled at other instants than "
+                            f"the force channel {fname!r} (first sample at {float(t[0]):.9g} s, the "
+                            f"force's at {float(force.t[0]):.9g} s); H1 relates force and responses sample by sample")
+    starts = ", ".join(f"{float(c.t[0]):.6f} s (group {c.group})" for c in copies[:8])
+    raise ChannelMismatchError(f"{p}: hit {hit} (the force record of channel group {force.group}, {_span(force.t)}): "
+                               f"channel {name!r} has no record on the force's time stamps (its {len(copies)} "
+                               f"record{'s' if len(copies) > 1 else ''} start at {starts}); every triggered record "
+                               f"needs the force and all the table's responses")
 
 
 def _even_time_axis(p: str, name: str, t: np.ndarray) -> tuple[float, float]:
@@ -100,8 +164,40 @@ def _even_time_axis(p: str, name: str, t: np.ndarray) -> tuple[float, float]:
     return float(tf[0]), float((tf[-1] - tf[0]) / (tf.size - 1))
 
 
+def _hit_records(p: str, found: dict, copies: dict, fkey, force: _Record, hit: int,
+                 n_hits: int) -> tuple[dict, tuple[float, float]]:
+    """The records of one hit, keyed as the table, and the force's ``(t0, dt)``; each checked evenly sampled."""
+    t0, dt = _even_time_axis(p, found[fkey], force.t)
+    recs = {fkey: force}
+    for key, name in found.items():
+        if key != fkey:
+            recs[key] = _match(p, name, copies[key], force, found[fkey], dt, hit, n_hits)
+            _even_time_axis(p, name, recs[key].t)
+    return recs, (t0, dt)
+
+
+def _check_all_used(p: str, found: dict, copies: dict, hits: list, forces: list[_Record]) -> None:
+    """A response record that no hit took is refused: nothing in the file is silently left out."""
+    for key, name in found.items():
+        taken = [id(h[0][key]) for h in hits]
+        twice = [i for i, k in enumerate(taken) if k in taken[:i]]
+        if twice:
+            i = twice[0]
+            raise ChannelMismatchError(f"{p}: hits {taken.index(taken[i]) + 1} and {i + 1} (force records in channel "
+                                       f"groups {forces[taken.index(taken[i])].group} and {forces[i].group}) both "
+                                       f"find channel {name!r} in channel group {hits[i][0][key].group}: their force "
+                                       f"records share the time stamps, and the response is in neither's group")
+        left = [c for c in copies[key] if id(c) not in set(taken)]
+        if left:
+            c = left[0]
+            raise ChannelMismatchError(f"{p}: channel {name!r} (channel group {c.group}, {_span(c.t)}): a record on no "
+                                       f"force record's time stamps ({len(forces)} force record"
+                                       f"{'s' if len(forces) > 1 else ''}, the first {_span(forces[0].t)}); a "
+                                       f"response recorded without its force cannot be part of the test")
+
+
 def read_hammer_mdf(path: Path, channels: pd.DataFrame) -> HammerTest:
-    """A hammer test from an MDF file: one record per table channel, read as one hit (module docstring).
+    """A hammer test from an MDF file: one hit per force record (module docstring).
 
     Parameters
     ----------
@@ -112,7 +208,8 @@ def read_hammer_mdf(path: Path, channels: pd.DataFrame) -> HammerTest:
     Returns
     -------
     HammerTest
-        One hit; :func:`ema.read_hammer` cuts a continuous recording into hits.
+        One hit per triggered record, or one hit of the whole recording, which :func:`ema.read_hammer` cuts
+        into hits when it holds several impacts.
     """
     p = str(path)
     log.info("reading hammer test %s (%.1f MB, MDF)", p, path.stat().st_size / 1e6)
@@ -131,7 +228,7 @@ def read_hammer_mdf(path: Path, channels: pd.DataFrame) -> HammerTest:
                 f"{p}: {len(missing)} channel{'s' if len(missing) > 1 else ''} of the channel table not in the file: "
                 f"{', '.join(repr(n) for n in missing)}; the table's 'name' column must name the logger's channels "
                 f"(the file holds {shown})")
-        records = {key: _record(mdf, p, name, db[name], masters) for key, name in found.items()}
+        copies = {key: _copies(mdf, p, name, db[name], masters) for key, name in found.items()}
     finally:
         mdf.close()
     skipped = sorted(set(names) - set(found.values()) - {"time", "t"})
@@ -140,29 +237,37 @@ def read_hammer_mdf(path: Path, channels: pd.DataFrame) -> HammerTest:
                     "channels by name): %s", p, len(skipped), "s" if len(skipped) > 1 else "",
                     ", ".join(repr(n) for n in skipped[:20]) + (" ..." if len(skipped) > 20 else ""))
     fkey = next(k for k in rows if k[1] == "force")
-    t_ref = records[fkey][0]
-    t0, dt = _even_time_axis(p, found[fkey], t_ref)
-    for key, (t, _, _, group) in records.items():
-        if key == fkey:
-            continue
-        name = found[key]
-        if t.size != t_ref.size:
-            rate = (t.size - 1) / float(t[-1] - t[0]) if t.size > 1 and t[-1] > t[0] else float("nan")
-            raise SamplingError(f"{p}: channel {name!r} (channel group {group}): {t.size} samples ({rate:.6g} Hz), "
-                                f"the force channel {found[fkey]!r} {t_ref.size} ({1 / dt:.6g} Hz); force and "
-                                f"responses must be recorded at one rate over one span")
-        t0_k, _ = _even_time_axis(p, name, t)
-        if abs(t0_k - t0) > 1e-3 * dt or abs(float(t[-1]) - float(t_ref[-1])) > 1e-3 * dt:
-            raise SamplingError(f"{p}: channel {name!r} (channel group {group}) is sampled at other instants than "
-                                f"the force channel {found[fkey]!r} (first sample at {float(t[0]):.9g} s, the "
-                                f"force's at {t0:.9g} s); H1 relates force and responses sample by sample")
+    # one force record is a continuous recording (or one hit); several are a triggered logger's hits, numbered
+    # in time order (group order where a logger restarts the time stamps at every trigger)
+    forces = sorted(copies[fkey], key=lambda r: (float(r.t[0]) if r.t.size else 0.0, r.group))
+    hits = [_hit_records(p, found, copies, fkey, f, i + 1, len(forces)) for i, f in enumerate(forces)]
+    _check_all_used(p, found, copies, hits, forces)
+    t0, dt = hits[0][1]
+    for i, (recs, (_, dt_i)) in enumerate(hits[1:], start=2):
+        n_first, n_i = forces[0].t.size, forces[i - 1].t.size
+        if n_i != n_first or abs(dt_i - dt) > 1e-6 * dt:
+            raise SamplingError(f"{p}: hit {i} (channel group {forces[i - 1].group}, {_span(forces[i - 1].t)}): "
+                                f"{n_i} samples at {1 / dt_i:.6g} Hz, hit 1 (channel group {forces[0].group}) "
+                                f"{n_first} at {1 / dt:.6g} Hz; the triggered records of one test must share the "
+                                f"rate and the record length (set the logger's trigger to a fixed length)")
+    records = {}
+    for key in rows:
+        units = sorted({h[0][key].unit for h in hits})
+        if len(units) > 1:
+            raise UnitSystemError(f"{p}: channel {found[key]!r} is recorded in {' and '.join(map(repr, units))} in "
+                                  f"different hits; one channel must keep one unit through the test")
+        records[key] = hits[0][0][key]
     has_sens = "sensitivity" in channels.columns
-    scale = {key: unit_scale(p, rows[key], records[key][2], has_sens, f"channel group {records[key][3]}")
+    scale = {key: unit_scale(p, rows[key], records[key].unit, has_sens, f"channel group {records[key].group}")
              for key in rows}
     acc = [(int(n), "acceleration") for n in channels.loc[channels["quantity"] == "acceleration", "node"]]
-    force = (records[fkey][1] * scale[fkey][0])[None, :]
-    resp = np.stack([records[k][1] * scale[k][0] for k in acc])[None, :, :]
-    history = [f"read_hammer {p} (MDF, one record per channel, {force.shape[1] * dt:.3f} s)"]
+    force = np.stack([h[0][fkey].v * scale[fkey][0] for h in hits])
+    resp = np.stack([np.stack([h[0][k].v * scale[k][0] for k in acc]) for h in hits])
+    layout = ("one record per channel" if len(hits) == 1 else
+              f"{len(hits)} triggered records of {force.shape[1]} samples in channel groups "
+              f"{', '.join(str(f.group) for f in forces[:12])}{' ...' if len(forces) > 12 else ''}, hits numbered in "
+              f"time order")
+    history = [f"read_hammer {p} (MDF, {layout}, {force.shape[1] * dt:.3f} s)"]
     history += unit_notes(p, rows, scale, has_sens)
     renamed = [f"{rows[k].name!r} as {n!r}" for k, n in found.items() if n != str(rows[k].name)]
     if renamed:
@@ -171,7 +276,7 @@ def read_hammer_mdf(path: Path, channels: pd.DataFrame) -> HammerTest:
         history.append(note)
     check_force_peak(p, force, rows[fkey], scale[fkey], has_sens)
     test = HammerTest(fs=1.0 / dt, time=t0 + dt * np.arange(force.shape[1]), channels=channels, force=force,
-                      responses=resp, hits=(1,), source=p, history=tuple(history))
-    log.info("read %s: %d channels + force, fs %g Hz, %d samples (%.3g s)", p, test.n_channels, test.fs,
-             test.n_samples, test.n_samples * dt)
+                      responses=resp, hits=tuple(range(1, len(hits) + 1)), source=p, history=tuple(history))
+    log.info("read %s: %d channels + force, fs %g Hz, %d hit%s of %d samples (%.3g s)", p, test.n_channels, test.fs,
+             test.n_hits, "s" if test.n_hits > 1 else "", test.n_samples, test.n_samples * dt)
     return test

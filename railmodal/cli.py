@@ -381,8 +381,8 @@ def build_parser() -> argparse.ArgumentParser:
     source = ident.add_mutually_exclusive_group(required=True)
     source.add_argument("--hammer", action="append", type=existing_file("--hammer", "hammer-test (UFF58 or MDF)"),
                         help="UFF58 time histories (one dataset per channel per hit), or a data logger's MDF file "
-                             "(one continuous record per channel, named as in --channels; cut into hits at the "
-                             "impacts); repeat it for a setup whose "
+                             "(channels named as in --channels; one record per trigger, or one continuous record "
+                             "cut into hits at the impacts); repeat it for a setup whose "
                              "hits are stored in several files (one hit per file): they are read as one test, the "
                              "hits renumbered in the order given, every file checked against the one --channels "
                              f"table (at most {MAX_HAMMER_FILES} files)")

@@ -1,9 +1,11 @@
-"""A hammer test recorded continuously by a data logger into an MDF file (ema.hammer_mdf, ema.continuous).
+"""A hammer test recorded by a data logger into an MDF file, continuously or triggered (ema.hammer_mdf).
 
 Oracles: the virtual lab's small campaign, its triggered hits end to end in MDF 4 channels named as a logger
 names them (accelerations in g), which must identify as the triggered UFF file does (modes within 0.05 %); and a
 toy recording whose every defect (a lost block of samples, a channel at another rate, a damaged file, a table
-name the file lacks, raw volts without a sensitivity) is known and must be named.
+name the file lacks, raw volts without a sensitivity) is known and must be named; the same toy cut into hits and
+written back as triggered records, in three layouts, must read as those hits, and a lost, orphaned or short
+record or a unit changing between hits must be named by hit and channel.
 """
 
 from __future__ import annotations
@@ -118,13 +120,114 @@ def test_bad_logger_files_are_refused_by_file_and_channel(tmp_path):
         ema.read_hammer(tmp_path / "cut.mf4", csv)
 
 
+def triggered_signals(test: ema.HammerTest, starts, *, module_of=None, unit="g"):
+    """One trigger's records per hit at the absolute start times ``starts``, with the groups each signal goes to.
+
+    ``module_of(j)``: the measuring module of response ``j`` (0 is the force's); each module and trigger is a group.
+    """
+    sigs, groups = [], []
+    modules = sorted({0} | {module_of(j) if module_of else 0 for j in range(test.n_channels)})
+    names = ["Hammer"] + [f"ch{j}" for j in range(test.n_channels)]
+    for i, t0 in enumerate(starts):
+        t = t0 + np.arange(test.n_samples) / test.fs
+        scale = G if unit == "g" else 1.0
+        sigs.append((names[0], "N", (t, test.force[i])))
+        groups.append(i * len(modules))
+        for j in range(test.n_channels):
+            sigs.append((names[j + 1], unit, (t, test.responses[i, j] / scale)))
+            groups.append(i * len(modules) + modules.index(module_of(j) if module_of else 0))
+    return sigs, groups
+
+
+def test_a_triggered_logger_file_is_one_hit_per_record_in_time_order(tmp_path, caplog):
+    """The cut toy recording written back as a logger's triggered records: the same hits, whatever the layout."""
+    hits = ema.continuous.split_continuous(continuous())
+    csv = tmp_path / "channels.csv"
+    table().to_csv(csv, index=False)
+    starts = 3.0 + 2.5 * np.arange(hits.n_hits)
+    # one group per trigger, written out of time order: the hits are numbered by their time stamps
+    sigs, groups = triggered_signals(hits, starts)
+    order = [2, 0, 4, 1, 3]
+    per_hit = len(sigs) // hits.n_hits
+    pick = [k for i in order for k in range(i * per_hit, (i + 1) * per_hit)]
+    with caplog.at_level(logging.INFO, logger="ema"):
+        test = ema.read_hammer(write_mdf(tmp_path / "trig.mf4", None, [sigs[k] for k in pick],
+                                         groups=[groups[k] for k in pick]), csv)
+    assert test.hits == (1, 2, 3, 4, 5) and test.n_samples == hits.n_samples
+    assert test.time[0] == pytest.approx(starts[0], abs=0.5 / FS)
+    np.testing.assert_allclose(test.responses, hits.responses, rtol=1e-6, atol=1e-6 * np.abs(hits.responses).max())
+    np.testing.assert_allclose(test.force, hits.force, rtol=1e-6, atol=1e-6 * np.abs(hits.force).max())
+    assert any("5 triggered records" in h for h in test.history)
+    # one group per measuring module and trigger (force + ch0 on one module, ch1 and ch2 on another)
+    sigs, groups = triggered_signals(hits, starts, module_of=lambda j: 0 if j == 0 else 1)
+    mod = ema.read_hammer(write_mdf(tmp_path / "mod.mf4", None, sigs, groups=groups), csv)
+    np.testing.assert_array_equal(mod.responses, test.responses)
+    # a logger that restarts its time stamps at every trigger: the responses are the force's group's
+    sigs, groups = triggered_signals(hits, np.zeros(hits.n_hits))
+    again = ema.read_hammer(write_mdf(tmp_path / "zero.mf4", None, sigs, groups=groups), csv)
+    np.testing.assert_array_equal(again.responses, test.responses)
+
+
+def test_bad_triggered_logger_files_are_refused_by_hit_and_channel(tmp_path):
+    hits = ema.continuous.split_continuous(continuous(rebound_after=None))
+    csv = tmp_path / "channels.csv"
+    table().to_csv(csv, index=False)
+    starts = 3.0 + 2.5 * np.arange(hits.n_hits)
+    sigs, groups = triggered_signals(hits, starts, module_of=lambda j: j)
+
+    def write(name, keep=lambda k, sig: True, change=lambda k, sig: sig, zero=False):
+        s, g = triggered_signals(hits, np.zeros(hits.n_hits) if zero else starts, module_of=lambda j: j)
+        kept = [(change(k, sig), grp) for k, (sig, grp) in enumerate(zip(s, g)) if keep(k, sig)]
+        return write_mdf(tmp_path / name, None, [a for a, _ in kept], groups=[b for _, b in kept])
+
+    per_hit = len(sigs) // hits.n_hits
+    # groups: force + ch0, ch1, ch2 per trigger (3 per hit; a group left empty is not written)
+    # the third trigger's ch1 lost: the hit and the channel named
+    with pytest.raises(ema.ChannelMismatchError, match=r"lost\.mf4: hit 3 \(the force record of channel group 6, "
+                                                       r"8\.000000–9\.249688 s\): channel 'ch1' has no record"):
+        ema.read_hammer(write("lost.mf4", keep=lambda k, sig: not (k == 2 * per_hit + 2)), csv)
+    # a response record whose force record is missing: not silently left out
+    with pytest.raises(ema.ChannelMismatchError, match=r"orphan\.mf4: channel 'ch0' \(channel group 12, "
+                                                       r"13\.000000–14\.249688 s\): a record on no force record"):
+        ema.read_hammer(write("orphan.mf4", keep=lambda k, sig: k != 4 * per_hit), csv)
+    # the fourth trigger stopped early
+    short = round(0.9 * hits.n_samples)
+    with pytest.raises(ema.SamplingError, match=rf"short\.mf4: hit 4 \(channel group 9, .*\): {short} samples at "
+                                                rf"3200 Hz, hit 1 \(channel group 0\) {hits.n_samples} at 3200 Hz"):
+        ema.read_hammer(write("short.mf4", change=lambda k, sig: sig if k // per_hit != 3 else
+                              (sig[0], sig[1], (sig[2][0][:short], sig[2][1][:short]))), csv)
+    # one channel in g in one hit and in m/s^2 in the others
+    with pytest.raises(UnitSystemError, match=r"unit\.mf4: channel 'ch2' is recorded in 'g' and 'm/s\^2' in "
+                                              r"different hits"):
+        ema.read_hammer(write("unit.mf4", change=lambda k, sig: sig if k != per_hit + 3 else
+                              (sig[0], "m/s^2", (sig[2][0], sig[2][1] * G))), csv)
+    # time stamps restarted at each trigger and ch1 in its own module's group: no way to tell its hits apart
+    with pytest.raises(ema.ChannelMismatchError, match=r"zero\.mf4: channel groups 1 and 4 both hold a channel "
+                                                       r"'ch1' on the force's time stamps"):
+        ema.read_hammer(write("zero.mf4", zero=True), csv)
+
+
 def test_the_lab_campaign_recorded_by_a_logger_identifies_as_the_triggered_file(tmp_path_factory, capsys):
-    """The small campaign's 4 hits (1 s records) end to end as MDF 4 channels in g: the same modes."""
+    """The small campaign's 4 hits (1 s records) end to end as MDF 4 channels in g: the same modes.
+
+    Written as a triggered logger's records (one group per hit, in m/s^2), the same hits sample for sample.
+    """
     folder = small_campaign(campaign_dir("control"), tmp_path_factory.mktemp("mdf"))
     test = ema.read_hammer(folder / "flexural.uff", folder / "flexural_channels.csv")
     chans = pd.read_csv(folder / "flexural_channels.csv")
     acc = chans[chans["quantity"] == "acceleration"].reset_index(drop=True)
     fname = str(chans.loc[chans["quantity"] == "force", "name"].iloc[0])
+    trig, groups = [], []
+    for i in range(test.n_hits):
+        t = 10.0 * i + test.time
+        trig.append((fname, "N", (t, test.force[i])))
+        trig += [(str(r["name"]), "m/s^2", (t, test.responses[i, j])) for j, r in acc.iterrows()]
+        groups += [i] * (1 + len(acc))
+    logged = ema.read_hammer(write_mdf(folder / "triggered.mf4", None, trig, groups=groups),
+                             folder / "flexural_channels.csv")
+    assert logged.hits == tuple(range(1, test.n_hits + 1))  # a logger counts its triggers, UFF kept its numbers
+    np.testing.assert_array_equal(logged.responses, test.responses)
+    np.testing.assert_array_equal(logged.force, test.force)
     time = np.arange(test.force.size) / test.fs
     sigs = [(fname, "N", test.force.reshape(-1))]
     sigs += [(str(r["name"]), "g", test.responses[:, j].reshape(-1) / G) for j, r in acc.iterrows()]
