@@ -21,7 +21,7 @@ _MODULES: dict[str, tuple[str, ...]] = {
     "estimate": ("EstimationError", "ForceWindow", "auto_exp_decay", "estimate_frf"),
     "frf": ("FRFShapeError", "FrequencyResponse"),
     "hammer_io": ("ChannelDirectionWarning", "ChannelMismatchError", "FunctionTypeError", "HammerDataError",
-                  "HammerTest", "MDFReadError", "NonFiniteDataError", "SamplingError", "UFFReadError",
+                  "HammerTest", "MDFReadError", "CSVReadError", "NonFiniteDataError", "SamplingError", "UFFReadError",
                   "UnknownFormatError", "ZeroForceError", "read_hammer"),
     "screening": ("Rejection", "Screening", "ScreeningConfig", "screen_hits"),
     "uff_frf": ("read_frf_uff",),

@@ -81,6 +81,7 @@ __all__ = [
     "HammerDataError",
     "UFFReadError",
     "MDFReadError",
+    "CSVReadError",
     "UnknownFormatError",
     "FunctionTypeError",
     "ChannelMismatchError",
@@ -108,6 +109,10 @@ class UFFReadError(HammerDataError):
 
 class MDFReadError(HammerDataError):
     """An MDF file asammdf cannot read (truncated, corrupt), or a channel block in it."""
+
+
+class CSVReadError(HammerDataError):
+    """A CSV table of time histories that cannot be read: a cell not a number, a row cut short, no time column."""
 
 
 class UnknownFormatError(HammerDataError):
@@ -1211,6 +1216,18 @@ def _sniff_mdf(path: Path) -> bool:
     return sniff(path)
 
 
+def _sniff_csv(path: Path) -> bool:
+    from .hammer_csv import sniff
+
+    return sniff(path)
+
+
+def _read_csv(path: Path, table: pd.DataFrame) -> HammerTest:
+    from .hammer_csv import read_hammer_csv
+
+    return read_hammer_csv(path, table)
+
+
 def _read_mdf(path: Path, table: pd.DataFrame) -> HammerTest:
     from .hammer_mdf import read_hammer_mdf
 
@@ -1223,6 +1240,8 @@ HAMMER_FORMATS: dict[str, tuple[Callable[[Path], bool], Callable[[Path, pd.DataF
     "mdf": (_sniff_mdf, _read_mdf,
             "ASAM MDF 3/4 of a data logger (asammdf): continuous or one record per trigger, "
             "channels found by the table's names"),
+    "csv": (_sniff_csv, _read_csv,
+            "wide CSV table of a DAQ export: a time column, then one column per channel named as in the table"),
 }
 
 
@@ -1241,7 +1260,9 @@ def read_hammer(uff_path, channels_csv, *, format: str | None = None) -> HammerT
         channel in ``rsp_node`` and, at a driving point, the specific data
         type), or an MDF 3/4 file of a data logger (channels named as the
         table's ``name`` column; one continuous record per channel, or one
-        channel group per trigger, :mod:`ema.hammer_mdf`). Several
+        channel group per trigger, :mod:`ema.hammer_mdf`), or a DAQ's wide
+        CSV export (a time column, then one column per channel named as in
+        the table, :mod:`ema.hammer_csv`). Several
         files (a list or tuple) are the hits of one setup
         stored in several files (a lab that writes one hit per file): each is
         read and checked against the same channel table, they must share the
@@ -1275,6 +1296,9 @@ def read_hammer(uff_path, channels_csv, *, format: str | None = None) -> HammerT
     MDFReadError
         An MDF file or channel asammdf cannot read (:mod:`ema.hammer_mdf`,
         whose other refusals use the errors below).
+    CSVReadError
+        A CSV table with a cell that is not a number, a row cut short or no
+        time column, by row and column (:mod:`ema.hammer_csv`).
     FunctionTypeError
         No time response (function type 1) in the file (datasets of other
         function types are skipped with an INFO log, and named when a table

@@ -21,6 +21,7 @@ from typing import Mapping
 import numpy as np
 import pandas as pd
 
+from ema.wide_csv import NAN_WORDS, read_hash_header
 from estimator.errors import RunFileError
 from estimator.io.registry import RawChannel, RawRecording
 
@@ -43,10 +44,6 @@ def sniff_csv(path: Path, head: bytes) -> bool:
         return False
     lines = [ln for ln in text.splitlines() if ln.strip() and not ln.startswith("#")]
     return bool(lines) and all(c in lines[0].replace(" ", "") for c in ("channel", "t_s", "value"))
-
-
-#: cells read as a missing sample (NaN), not as damage
-NAN_WORDS = frozenset({"", "nan", "-nan", "+nan", "na", "n/a", "null", "none"})
 
 
 def _numbers(cells: pd.Series, path: Path, channel, column: str) -> np.ndarray:
@@ -129,21 +126,7 @@ def read_csv_header(path: Path) -> tuple[dict[str, str], int]:
 
     Raises RunFileError when a key is given twice with two values (which one holds cannot be told).
     """
-    header: dict[str, str] = {}
-    skip = 0
-    with open(path, encoding="utf-8-sig") as fh:
-        for line in fh:
-            if not line.startswith("#"):
-                break
-            skip += 1
-            body = line[1:].strip()
-            if "=" in body:
-                k, v = (x.strip() for x in body.split("=", 1))
-                if k in header and header[k] != v:
-                    raise RunFileError(f"{path}: header key {k!r} is given twice ({header[k]!r}, then {v!r}); "
-                                       "which one holds cannot be told")
-                header[k] = v
-    return header, skip
+    return read_hash_header(path, RunFileError)
 
 
 def read_csv(path: Path) -> RawRecording:
