@@ -282,12 +282,16 @@ def test_corrupt_header_bytes(tmp_path):
 
 def test_unknown_format_lists_supported(tmp_path):
     p = tmp_path / "notes.txt"
-    p.write_text("time,force\n0,1\n")
+    p.write_text("impact test, wheelset 2\nhits 1-6 on the tread\n")
     (tmp_path / "c.csv").write_text(small_table().to_csv(index=False))
-    with pytest.raises(UnknownFormatError, match="uff58"):
+    with pytest.raises(UnknownFormatError, match="uff58.*mdf.*csv"):
         read_hammer(p, tmp_path / "c.csv")
-    with pytest.raises(UnknownFormatError, match="'csv'.*uff58"):
-        read_hammer(p, tmp_path / "c.csv", format="csv")
+    with pytest.raises(UnknownFormatError, match="'xlsx'.*uff58"):
+        read_hammer(p, tmp_path / "c.csv", format="xlsx")
+    # a time column then channels is a CSV export; its channels must be the table's
+    p.write_text("time,force\n0,1\n")
+    with pytest.raises(ChannelMismatchError, match="notes.txt: .* of the channel table not in the file"):
+        read_hammer(p, tmp_path / "c.csv")
     with pytest.raises(FileNotFoundError):
         read_hammer(tmp_path / "missing.uff", tmp_path / "c.csv")
 

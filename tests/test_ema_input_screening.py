@@ -205,6 +205,76 @@ def test_a_clip_rounded_by_the_converters_filter_is_found_by_the_other_hits(rati
         assert scr.rejections == ()
 
 
+@pytest.mark.parametrize("ratio, rejected", [(0.5, True), (0.7, True), (0.8, True), (0.9, False)])
+def test_a_force_clipped_before_the_converters_filter_is_found_by_its_responses(ratio, rejected):
+    """The force input overloaded in hit 3 and the clip rounded by the filter: no flat top, but the hit's own
+    responses, through the other hits' FRF, imply a larger force. Clipped at 0.5, 0.7 and 0.8 of its peak the
+    spectrum is 0.56, 0.77 and 0.86 of the implied one (the hit would raise every FRF by 5.1, 2.3 and 1.3 dB) and the
+    hit is rejected; at 0.9 (0.95, 0.5 dB, inside the 1 dB limit) it is kept. Oracle of the verdict's worth: the FRF
+    of the same hits without the clip."""
+    from ema.estimate import estimate_frf, rest_values
+    from ema.screening import force_consistency
+
+    force, resp = toy_hits()
+    clean = HammerTest.from_arrays(force.copy(), resp, FS, toy_table())
+    force[2] = rounded_clip(force[2], ratio)
+    assert flat_extreme_count(force[2])[0] < 2
+    test = HammerTest.from_arrays(force, resp, FS, toy_table())
+    f_ratio, f_peak = force_consistency(test, np.ones((5, 3), bool), *rest_values(test))
+    np.testing.assert_allclose(np.delete(f_ratio, 2), 1.0, atol=0.01)  # each against the median of the others
+    expected = {0.5: 0.56, 0.7: 0.77, 0.8: 0.86, 0.9: 0.95}[ratio]
+    assert f_ratio[2] == pytest.approx(expected, abs=0.02) and f_peak[2] < f_ratio[2]
+    cfg = ScreeningConfig(check_coherence=False)
+    scr = screen_hits(test, config=cfg)
+
+    def error_db(screening):
+        h = estimate_frf(test, band_hz=(20.0, 600.0), screening=screening).data
+        ref = estimate_frf(clean, band_hz=(20.0, 600.0), screening=screen_hits(clean, config=cfg)).data
+        return float(np.median(np.abs(20 * np.log10(np.abs(h / ref)))))
+
+    if rejected:
+        (rej,) = scr.rejections
+        assert (rej.hit, rej.channel, rej.reason) == (3, None, "force off its responses")
+        assert f"{f_ratio[2]:.3f} x the one its responses imply" in rej.detail and "clipped" in rej.detail
+        assert not scr.accepted[2].any() and scr.accepted.sum() == 12
+        # the FRF without the hit is the clean one's within 0.01 dB (median over the band); averaged in, the hit
+        # would have moved it 0.14, 0.24 and 0.42 dB for the clips at 0.8, 0.7 and 0.5
+        kept, averaged_in = error_db(scr), error_db(False)
+        assert kept < 0.02 and averaged_in > 0.1 and averaged_in > 5 * kept, (kept, averaged_in)
+    else:
+        assert scr.rejections == ()
+        assert error_db(scr) < 0.3
+
+
+def test_a_lab_hit_whose_force_input_overloaded_is_rejected_and_nothing_else_changes():
+    """The virtual lab's control flexural setup, hit 1's force clipped at 0.7 of its peak before the filter (29
+    channels, 12.8 kHz): that hit is rejected as off its responses by about the toy's -2.3 dB, and the manifest's
+    own faults are rejected as before."""
+    from dataclasses import replace
+
+    test = lab_test("control", "flexural")
+    before = screen_hits(test, config=ScreeningConfig(check_coherence=False))
+    force = test.force.copy()
+    force[0] = rounded_clip(force[0], 0.7)
+    after = screen_hits(replace(test, force=force), config=ScreeningConfig(check_coherence=False))
+    new = [r for r in after.rejections if r not in before.rejections]
+    assert [(r.hit, r.channel, r.reason) for r in new] == [(test.hits[0], None, "force off its responses")]
+    measured = float(new[0].detail.split("the force spectrum is ")[1].split(" x")[0])
+    assert 20 * np.log10(measured) == pytest.approx(-2.3, abs=0.4)
+    assert set(before.rejections) <= set(after.rejections)
+
+
+def test_a_force_scaled_wrongly_in_every_hit_is_consistent_with_its_responses():
+    """A wrong force sensitivity scales every hit's force and so the other hits' FRF: nothing to see per hit."""
+    from ema.estimate import rest_values
+    from ema.screening import force_consistency
+
+    force, resp = toy_hits()
+    test = HammerTest.from_arrays(0.5 * force, resp, FS, toy_table())
+    np.testing.assert_allclose(force_consistency(test, np.ones((5, 3), bool), *rest_values(test))[0], 1.0, atol=2e-3)
+    assert screen_hits(test, config=ScreeningConfig(check_coherence=False)).rejections == ()
+
+
 def test_a_record_scaled_wrongly_is_not_called_clipped():
     """A sensitivity halved in one hit lowers the peak as much as the rest of the record: no compression, so no
     clip (the level checks judge a scale)."""
