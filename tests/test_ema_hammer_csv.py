@@ -134,3 +134,33 @@ def test_the_lab_campaign_one_csv_file_per_hit_reads_as_its_uff_file(tmp_path_fa
     # 7 significant digits in the text: the UFF file's float32 samples to within 5e-7 of each value
     np.testing.assert_allclose(logged.responses, test.responses, rtol=6e-7, atol=1e-9 * np.abs(test.responses).max())
     np.testing.assert_allclose(logged.force, test.force, rtol=6e-7, atol=1e-9 * np.abs(test.force).max())
+
+
+@pytest.mark.parametrize("sep, decimal", [(",", "."), (";", ",")])
+def test_the_one_pass_parse_gives_the_cell_by_cell_one(tmp_path, sep, decimal):
+    """A table without blank cells is parsed in one pass of pandas' C parser (a 125 MB export: 1.2 s and 0.4 GB
+    instead of 11 s and 2.6 GB); it must give what the cell-by-cell parse gives, NaN words and row order included."""
+    from ema import wide_csv
+
+    rng = np.random.default_rng(2)
+    t = np.arange(2000) / 3200.0
+    cols = [(f"c{j} [g]", rng.standard_normal(t.size) * 10.0 ** rng.integers(-6, 6, t.size)) for j in range(3)]
+    path = write_csv(tmp_path / "t.csv", t, cols, sep=sep, decimal=decimal, time_format="%.17g")
+    lines = path.read_text().splitlines()
+    # a lost sample written as a word, and two rows swapped (a logger merging buffers)
+    f = lines[11].split(sep)
+    f[2] = "n/a"
+    lines[11] = sep.join(f)
+    lines[20], lines[21] = lines[21], lines[20]
+    path.write_text("\n".join(lines) + "\n")
+    table = wide_csv.read_wide_table(path, ValueError)
+    assert wide_csv._all_numbers(path, 0, sep, sep == ";", 4) is not None  # the one-pass path was taken
+    names = [(f"c{j}", "g") for j in range(3)]
+    slow = wide_csv._columns_cell_by_cell(path, 0, sep, sep == ";", [ln.strip() for ln in lines[0].split(sep)],
+                                          names, 1.0, ValueError, "table")
+    for name, _ in names:
+        np.testing.assert_array_equal(table.columns[name].t, slow[name].t)
+        np.testing.assert_array_equal(table.columns[name].values, slow[name].values)
+    assert np.isnan(table.columns["c1"].values[10]) and np.all(np.diff(table.columns["c0"].t) > 0)
+    # and both are the text's numbers, correctly rounded
+    np.testing.assert_array_equal(table.columns["c0"].values[:10], [float(f"{v:.6e}") for v in cols[0][1][:10]])
