@@ -275,6 +275,32 @@ def test_a_force_scaled_wrongly_in_every_hit_is_consistent_with_its_responses():
     assert screen_hits(test, config=ScreeningConfig(check_coherence=False)).rejections == ()
 
 
+@pytest.mark.parametrize("level", [1.0, 0.7, 0.5])
+def test_a_channel_clipped_at_one_level_in_every_hit_is_found_by_how_its_peak_grows(level):
+    """ch1's sensor saturates at ``level`` x the weakest hit's peak in every hit, rounded by the filter: each hit's
+    prediction comes from clipped hits, so no single hit looks compressed, but the peak no longer grows with the
+    force (power 0.02-0.08 against the other channels' 1.00). The channel is rejected in every hit."""
+    from ema.estimate import rest_values
+    from ema.screening import peak_compression, peak_slopes
+
+    force, resp = toy_hits()
+    top = level * np.abs(resp[:, 1]).max(axis=1).min()
+    for h in range(5):
+        resp[h, 1] = rounded_clip(resp[h, 1], top / np.abs(resp[h, 1]).max())
+    test = HammerTest.from_arrays(force, resp, FS, toy_table())
+    f_rest, rest = rest_values(test)
+    acc = np.ones((5, 3), bool)
+    _, predicted = peak_compression(test, acc, f_rest, rest)
+    measured = np.abs(test.responses - rest[:, :, None]).max(axis=2)
+    found = peak_slopes(acc, predicted, measured, 0.5)
+    assert [j for j, *_ in found] == [1] and found[0][1] < 0.1
+    assert peak_slopes(acc, predicted, measured, 0.97) == found  # the clean channels grow to the power 1 +- 0.03
+    scr = screen_hits(test, config=ScreeningConfig(check_coherence=False))
+    clips = [r for r in scr.rejections if r.reason == "clipped"]
+    assert [(r.hit, r.channel) for r in clips][-1] == (None, "ch1") and not scr.accepted[:, 1].any()
+    assert scr.accepted[:, [0, 2]].all()
+
+
 def test_a_record_scaled_wrongly_is_not_called_clipped():
     """A sensitivity halved in one hit lowers the peak as much as the rest of the record: no compression, so no
     clip (the level checks judge a scale)."""
