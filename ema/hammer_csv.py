@@ -29,7 +29,7 @@ import numpy as np
 import pandas as pd
 
 from .hammer_io import CSVReadError, HammerTest, SamplingError
-from .hammer_records import ChannelRecord, match_names, test_from_records
+from .hammer_records import ChannelRecord, hammer_test_from_records, match_names
 from .wide_csv import read_wide_table, sniff_wide
 
 __all__ = ["read_hammer_csv", "sniff", "time_resolution"]
@@ -99,4 +99,4 @@ def read_hammer_csv(path: Path, channels: pd.DataFrame) -> HammerTest:
                                     f"{dt:.6g} s apart: the stamps cannot tell them apart; export the time with more "
                                     f"decimals")
         copies[key] = [ChannelRecord(c.t, c.values, c.unit, 0, f"column {column[name]}", res)]
-    return test_from_records(p, channels, rows, found, names, copies, "CSV")
+    return hammer_test_from_records(p, channels, rows, found, names, copies, "CSV")

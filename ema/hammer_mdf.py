@@ -37,7 +37,7 @@ import numpy as np
 import pandas as pd
 
 from .hammer_io import ChannelMismatchError, HammerTest, MDFReadError
-from .hammer_records import ChannelRecord, match_names, same_record, test_from_records
+from .hammer_records import ChannelRecord, hammer_test_from_records, match_names, same_record
 from .mdf_file import open_mdf, sniff_mdf
 
 __all__ = ["read_hammer_mdf", "sniff"]
@@ -100,4 +100,4 @@ def read_hammer_mdf(path: Path, channels: pd.DataFrame) -> HammerTest:
         copies = {key: _copies(mdf, p, name, db[name], masters) for key, name in found.items()}
     finally:
         mdf.close()
-    return test_from_records(p, channels, rows, found, names, copies, "MDF")
+    return hammer_test_from_records(p, channels, rows, found, names, copies, "MDF")

@@ -2,11 +2,11 @@
 
 The readers of such files (:mod:`ema.hammer_mdf`, :mod:`ema.hammer_csv`) collect, for each channel name of the
 file the channel table asks for, its distinct records: time stamps, values, unit and where they sit (an MDF
-channel group, a CSV column). :func:`match_names` finds the table's names in the file; :func:`test_from_records`
-makes the test: one hit per force record (several are a triggered logger's hits, numbered in time order); each
-response the copy sampled at its force record's instants, or, where several are, the one in the force's own
-group. Every refusal names the file, the channel and, where there are several, the hit (module docstring of
-:mod:`ema.hammer_mdf`).
+channel group, a CSV column). :func:`match_names` finds the table's names in the file;
+:func:`hammer_test_from_records` makes the test: one hit per force record (several are a triggered logger's
+hits, numbered in time order); each response the copy sampled at its force record's instants, or, where several
+are, the one in the force's own group. Every refusal names the file, the channel and, where there are several,
+the hit (module docstring of :mod:`ema.hammer_mdf`).
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ import pandas as pd
 from .hammer_io import (ChannelMismatchError, HammerTest, SamplingError, UnitSystemError, check_force_peak,
                         unit_notes, unit_scale)
 
-__all__ = ["ChannelRecord", "match_names", "same_record", "test_from_records"]
+__all__ = ["ChannelRecord", "match_names", "same_record", "hammer_test_from_records"]
 
 log = logging.getLogger("ema")
 
@@ -174,8 +174,8 @@ def _check_all_used(p: str, found: dict, copies: dict, hits: list, forces: list[
                                        f"response recorded without its force cannot be part of the test")
 
 
-def test_from_records(p: str, channels: pd.DataFrame, rows: dict, found: dict, names: list[str],
-                      copies: dict[tuple, list[ChannelRecord]], fmt: str) -> HammerTest:
+def hammer_test_from_records(p: str, channels: pd.DataFrame, rows: dict, found: dict, names: list[str],
+                             copies: dict[tuple, list[ChannelRecord]], fmt: str) -> HammerTest:
     """The hammer test of the records ``copies`` (per table key, the distinct records of its file channel).
 
     Parameters

@@ -80,9 +80,8 @@ Checks (thresholds in :class:`ScreeningConfig`):
     power below ``min_peak_slope`` (:func:`peak_slopes`; a linear record's grows to the power 1): a clip rounded by
     the filter in every hit, which no single hit's comparison sees, since the other hits' prediction is clipped
     too. Needs four hits whose implied peaks span a factor :data:`MIN_PEAK_SPAN`, and the power below the limit by
-    twice its standard error. Measured on the virtual lab's
-    setups (747 channels with that span) the power lies within 0.93–1.04; a toy channel clipped at the smallest
-    hit's peak, or lower, gives 0.02–0.08.
+    twice its standard error. Measured on the virtual lab's setups (747 channels with that span) the power lies
+    within 0.93–1.04; a toy channel clipped at the smallest hit's peak, or lower, gives 0.02–0.08.
 ``level inconsistent`` (one channel of one hit)
     The channel's response level per unit force (RMS of the record over the
     force pulse's RMS) differs from its median over the hits by more than
@@ -440,8 +439,10 @@ def force_consistency(test: HammerTest, accepted: np.ndarray, f_rest: np.ndarray
     peak_ratio : ndarray (n_hits,)
         The largest ``|f|`` of the force over the implied force's, both taken back to time on the tip's band,
         relative to the other hits' likewise.
-        NaN (no verdict) for a hit without two other accepted hits on one of its channels, with fewer than
-        :data:`MIN_TIP_LINES` such lines, or with fewer than three accepted hits in all.
+
+    Both are NaN (no verdict) for a hit without two other accepted hits on one of its channels, with fewer than
+    :data:`MIN_TIP_LINES` lines of the tip's band where a channel's FRF is coherent, or with fewer than three
+    accepted hits in all.
     """
     n = test.n_samples
     ratio = np.full(test.n_hits, np.nan)
