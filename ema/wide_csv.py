@@ -25,10 +25,11 @@ Layout (``# key = value`` header lines first, optional)::
   is a time column's name.
 * A row with fewer or more fields than the column header (a file cut short, a lost cell) is refused by line.
 
-A table of numbers and NaN words only (every channel at the rate of the rows, as a hammer test's export) is
-parsed in one pass of pandas' C parser, 8 bytes a cell: a 125 MB export of 30 channels reads in 1.2 s within
-0.4 GB (cell by cell, 11 s and 2.6 GB). A table with blank cells or a damaged cell is read cell by cell, which
-tells a blank (no sample) from a NaN word (a lost sample) and names the bad cell by row and column.
+A table of numbers, blank cells and NaN words is parsed in one pass of pandas' C parser, 8 bytes a cell (the
+blank cells told from the NaN words by the file's bytes); a table with a damaged cell (a word, a quoted field)
+is read cell by cell, which names the bad cell by row and column. The row check locates the separators by
+position. ``benchmarks/bench_wide_csv.py``: a 125 MB export of 30 channels reads in 0.9 s within 0.43 GB (cell
+by cell 8 s, 0.55 GB; before, with a cumulative count per byte in the row check, 11 s and 2.6 GB).
 """
 
 from __future__ import annotations
@@ -198,12 +199,21 @@ def read_wide_table(path: Path, error: type[Exception], what: str = "wide CSV fi
     decimal_comma = sep == ";"
     values = _all_numbers(path, skip, sep, decimal_comma, len(cols))
     t_scale = _TIME_UNITS[t_unit.strip()]
+    blank = None
+    if values is not None and np.isnan(values).any():
+        # a NaN is a blank cell (no sample) or a NaN word (a lost sample): the bytes tell which
+        blank = _blank_cells(path, skip + 1, sep, len(cols))
+        if blank.shape != values.shape:
+            values = None
     if values is not None and not np.isnan(values[:, 0]).any():
         t = values[:, 0] * t_scale
         if not np.all(np.diff(t) >= 0):  # rows out of time order: each channel sorted, as cell by cell
             order = np.argsort(t, kind="stable")
             t, values = t[order], values[order]
-        columns = {name: WideColumn(name, t, values[:, j], unit) for j, (name, unit) in enumerate(names, start=1)}
+            blank = None if blank is None else blank[order]
+        columns = {name: (WideColumn(name, t, values[:, j], unit) if blank is None or not blank[:, j].any() else
+                          WideColumn(name, t[~blank[:, j]], values[~blank[:, j], j], unit))
+                   for j, (name, unit) in enumerate(names, start=1)}
     else:
         columns = _columns_cell_by_cell(path, skip, sep, decimal_comma, cols, names, t_scale, error, what)
     if not columns or all(c.t.size == 0 for c in columns.values()):
@@ -212,10 +222,13 @@ def read_wide_table(path: Path, error: type[Exception], what: str = "wide CSV fi
 
 
 def _all_numbers(path: Path, skip: int, sep: str, decimal_comma: bool, n_fields: int) -> np.ndarray | None:
-    """Every cell as a float in one pass of pandas' C parser (8 bytes a cell), or None when a cell is blank or
-    not a number: those files are read cell by cell (:func:`_columns_cell_by_cell`), which tells a blank cell
-    (no sample) from a NaN word (a lost sample) and names a bad cell by row and column."""
-    words = sorted({v for w in NAN_WORDS - {""} for v in (w, w.upper(), w.capitalize(), "NaN")})
+    """Every cell as a float in one pass of pandas' C parser (8 bytes a cell), a blank cell or a NaN word as NaN;
+    None when a cell is neither a number nor blank nor a NaN word, or a field is quoted: those files are read cell
+    by cell (:func:`_columns_cell_by_cell`), which names a bad cell by row and column."""
+    words = sorted({v for w in NAN_WORDS - {""} for v in (w, w.upper(), w.capitalize(), "NaN")} | {""})
+    with open(path, "rb") as fh:
+        if b'"' in fh.read():
+            return None
     try:
         df = pd.read_csv(path, skiprows=skip, sep=sep, encoding="utf-8-sig", dtype=np.float64, na_values=words,
                          keep_default_na=False, decimal="," if decimal_comma else ".")
@@ -224,6 +237,32 @@ def _all_numbers(path: Path, skip: int, sep: str, decimal_comma: bool, n_fields:
     if df.shape[1] != n_fields or df.shape[0] == 0:
         return None
     return df.to_numpy(np.float64)
+
+
+def _line_bounds(path: Path, sep: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per line of the file, where it starts and ends (a ``\r`` before the newline excluded), and the positions
+    of the separators: the file's layout from its bytes, for the row check and for telling blank cells."""
+    raw = np.frombuffer(path.read_bytes(), np.uint8)
+    newline = np.flatnonzero(raw == ord("\n"))
+    ends = np.append(newline, raw.size) if raw.size and raw[-1] != ord("\n") else newline
+    starts = np.concatenate([[0], newline + 1])[:ends.size]
+    ends = ends - (raw[np.maximum(ends - 1, 0)] == ord("\r"))
+    # separators located by position (8 bytes a cell, not a cumulative count per byte)
+    at = np.flatnonzero(raw == ord(sep))
+    count = np.searchsorted(at, ends) - np.searchsorted(at, starts)
+    return starts, ends, at, count
+
+
+def _blank_cells(path: Path, header_lines: int, sep: str, n_fields: int) -> np.ndarray:
+    """``(n_rows, n_fields)``: which cells of the data rows are blank (two separators side by side, or one at a
+    row's end), in the rows pandas reads (empty lines skipped). The rows have ``n_fields`` fields
+    (:func:`_ragged_rows`)."""
+    starts, ends, at, _ = _line_bounds(path, sep)
+    data = (np.arange(ends.size) >= header_lines) & (ends > starts)
+    starts, ends = starts[data], ends[data]
+    first = np.searchsorted(at, starts)
+    bounds = np.column_stack([starts - 1, at[first[:, None] + np.arange(n_fields - 1)], ends])
+    return np.diff(bounds, axis=1) == 1
 
 
 def _columns_cell_by_cell(path: Path, skip: int, sep: str, decimal_comma: bool, cols: list[str],
@@ -253,16 +292,9 @@ def _ragged_rows(path: Path, header_lines: int, sep: str, n_fields: int, error) 
     A blank cell keeps its separators (``1.0,,2.0``), so a short row is a damaged one, not a missing sample.
     Counted on the bytes (numeric tables quote nothing), at the speed of the reading itself.
     """
-    raw = np.frombuffer(path.read_bytes(), np.uint8)
-    newline = np.flatnonzero(raw == ord("\n"))
-    ends = np.append(newline, raw.size) if raw.size and raw[-1] != ord("\n") else newline
-    starts = np.concatenate([[0], newline + 1])[:ends.size]
-    # separators counted between each line's ends by their positions (8 bytes a cell, not 8 a byte)
-    at = np.flatnonzero(raw == ord(sep))
-    count = np.searchsorted(at, ends) - np.searchsorted(at, starts)
-    length = ends - starts - (raw[np.maximum(ends - 1, 0)] == ord("\r"))
+    starts, ends, _, count = _line_bounds(path, sep)
     data = np.arange(ends.size) >= header_lines
-    bad = np.flatnonzero(data & (length > 0) & (count != n_fields - 1))
+    bad = np.flatnonzero(data & (ends > starts) & (count != n_fields - 1))
     if bad.size:
         k = int(bad[0])
         raise error(f"{path}: data row {k - header_lines + 1} (line {k + 1}) has {int(count[k]) + 1} field(s), "
