@@ -458,24 +458,28 @@ def force_consistency(test: HammerTest, accepted: np.ndarray, f_rest: np.ndarray
     F = np.fft.rfft((test.force - f_rest[:, None]) * np.array(windows), axis=1)
     A = np.fft.rfft(test.responses - a_rest[:, :, None], axis=2)
     power = np.abs(F) ** 2
+    # sums over every usable hit, from which each hit's own term is taken out (leave one out)
+    a = accepted.astype(float) * hit_ok[:, None]
+    cross_all = np.einsum("kf,kj,kjf->jf", F.conj(), a, A)
+    pf_all = a.T @ power
+    pa_all = np.einsum("kj,kjf->jf", a, np.abs(A) ** 2)
+    po_all = power[hit_ok].sum(axis=0)
+    count = a.sum(axis=0)
     for h in np.flatnonzero(hit_ok):
-        others = np.flatnonzero(hit_ok & (np.arange(test.n_hits) != h))
-        m = accepted[others].astype(float)
-        chans = np.flatnonzero(accepted[h] & (m.sum(axis=0) >= 2))
+        chans = np.flatnonzero(accepted[h] & (count - a[h] >= 2))
         if chans.size == 0:
             continue
-        m = m[:, chans]
-        Fo, Ao = F[others], A[others][:, chans]
+        Ah = A[h, chans]
         with np.errstate(divide="ignore", invalid="ignore"):
-            cross = np.einsum("kf,kj,kjf->jf", Fo.conj(), m, Ao)
-            pf = np.einsum("kj,kf->jf", m, power[others])
-            pa = np.einsum("kj,kjf->jf", m, np.abs(Ao) ** 2)
+            cross = cross_all[chans] - F[h].conj() * Ah
+            pf = pf_all[chans] - power[h]
+            pa = pa_all[chans] - np.abs(Ah) ** 2
             H = np.nan_to_num(cross / pf)
             # only the lines where a channel's FRF is known: its coherence over the other hits
             w = np.nan_to_num(np.abs(cross) ** 2 / (pf * pa)) >= MIN_LINE_COHERENCE
-            implied = np.nan_to_num(np.einsum("jf,jf,jf->f", w, H.conj(), A[h, chans])
+            implied = np.nan_to_num(np.einsum("jf,jf,jf->f", w, H.conj(), Ah)
                                     / np.einsum("jf,jf->f", w, np.abs(H) ** 2))
-        po = power[others].sum(axis=0)
+        po = po_all - power[h]
         tip = (po >= TIP_BAND_POWER * po[1:].max()) & w.any(axis=0)
         tip[0] = False  # the mean is the rest value's, not the pulse's
         if np.count_nonzero(tip) < MIN_TIP_LINES:
