@@ -88,15 +88,16 @@ def read_hammer_csv(path: Path, channels: pd.DataFrame) -> HammerTest:
     names = list(table.columns)
     rows, found = match_names(p, channels, names, "the export's")
     column = {n: j + 2 for j, n in enumerate(names)}  # column 1 is the time
-    copies = {}
-    for key, name in found.items():
-        c = table.columns[name]
-        res = time_resolution(c.t)
-        if c.t.size > 1 and res > 0:
-            dt = float(np.median(np.diff(c.t)))
-            if res >= 0.5 * dt:
-                raise SamplingError(f"{p}: the time column is written to {res:g} s, while the samples are "
-                                    f"{dt:.6g} s apart: the stamps cannot tell them apart; export the time with more "
-                                    f"decimals")
-        copies[key] = [ChannelRecord(c.t, c.values, c.unit, 0, f"column {column[name]}", res)]
+    # every channel's stamps come from the one time column: its resolution once, from the fullest channel
+    t = max((table.columns[n].t for n in found.values()), key=len)
+    res = time_resolution(t)
+    if t.size > 1 and res > 0:
+        dt = float(np.median(np.diff(t)))
+        if res >= 0.5 * dt:
+            raise SamplingError(f"{p}: the time column is written to {res:g} s, while the samples are "
+                                f"{dt:.6g} s apart: the stamps cannot tell them apart; export the time with more "
+                                f"decimals")
+    copies = {key: [ChannelRecord(table.columns[name].t, table.columns[name].values, table.columns[name].unit, 0,
+                                  f"column {column[name]}", res)]
+              for key, name in found.items()}
     return hammer_test_from_records(p, channels, rows, found, names, copies, "CSV")

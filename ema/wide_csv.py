@@ -267,7 +267,8 @@ def _blank_cells(path: Path, header_lines: int, sep: str, n_fields: int) -> np.n
 
 def _columns_cell_by_cell(path: Path, skip: int, sep: str, decimal_comma: bool, cols: list[str],
                           names: list[tuple[str, str]], t_scale: float, error, what: str) -> dict[str, WideColumn]:
-    """The channels of a table with blank cells (channels of different rates share the rows) or damaged ones."""
+    """The channels of a table the one-pass parse does not take (a damaged cell, a quoted field, a blank time),
+    read cell by cell, so that a bad cell is named by row and column."""
     try:
         df = pd.read_csv(path, skiprows=skip, sep=sep, encoding="utf-8-sig", dtype=str, keep_default_na=False)
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
