@@ -11,7 +11,9 @@ preamble, ``;`` with a decimal comma, a ``NaN`` cell a lost sample, damaged rows
 table selects the columns **by name**, as for an MDF file (:mod:`ema.hammer_records`): positions, directions and
 FE nodes come from the table; units and sensitivities follow :func:`ema.hammer_io.unit_scale`. A file is one
 record per channel: a continuous recording, which :func:`ema.read_hammer` cuts into hits at the impacts, or one
-hit (several files of one hit each make a test, as UFF files do).
+hit (several files of one hit each make a test, as UFF files do). A triggered export appends one record per
+trigger, each with its own time stamps: where the time column steps back, a new trigger starts, and each trigger
+is one hit (numbered in the file's order; every trigger must hold the same number of samples at the same rate).
 
 The time column is decimal text: an export that writes it to, say, 6 decimals rounds every stamp by up to half a
 microsecond, which at 12.8 kHz is 0.6 % of the sampling interval. The stamps are judged evenly spaced within
@@ -62,7 +64,7 @@ def time_resolution(t: np.ndarray) -> float:
 
 
 def read_hammer_csv(path: Path, channels: pd.DataFrame) -> HammerTest:
-    """A hammer test from a wide CSV table: one record per table channel, read as one hit (module docstring).
+    """A hammer test from a wide CSV table: one record per table channel and trigger (module docstring).
 
     Parameters
     ----------
@@ -73,7 +75,7 @@ def read_hammer_csv(path: Path, channels: pd.DataFrame) -> HammerTest:
     Returns
     -------
     HammerTest
-        One hit; :func:`ema.read_hammer` cuts a continuous recording into hits.
+        One hit per trigger; of one record, :func:`ema.read_hammer` cuts a continuous recording into hits.
 
     Raises
     ------
@@ -84,7 +86,8 @@ def read_hammer_csv(path: Path, channels: pd.DataFrame) -> HammerTest:
     """
     p = str(path)
     log.info("reading hammer test %s (%.1f MB, CSV)", p, path.stat().st_size / 1e6)
-    table = read_wide_table(path, CSVReadError, "wide CSV hammer-test file")
+    # the file's row order: a time column stepping back is a triggered export's next trigger
+    table = read_wide_table(path, CSVReadError, "wide CSV hammer-test file", sort=False)
     names = list(table.columns)
     rows, found = match_names(p, channels, names, "the export's")
     column = {n: j + 2 for j, n in enumerate(names)}  # column 1 is the time
@@ -97,7 +100,20 @@ def read_hammer_csv(path: Path, channels: pd.DataFrame) -> HammerTest:
             raise SamplingError(f"{p}: the time column is written to {res:g} s, while the samples are "
                                 f"{dt:.6g} s apart: the stamps cannot tell them apart; export the time with more "
                                 f"decimals")
-    copies = {key: [ChannelRecord(table.columns[name].t, table.columns[name].values, table.columns[name].unit, 0,
-                                  f"column {column[name]}", res)]
-              for key, name in found.items()}
-    return hammer_test_from_records(p, channels, rows, found, names, copies, "CSV")
+    copies = {key: _trigger_records(table.columns[name], column[name], res) for key, name in found.items()}
+    n_triggers = len(copies[next(k for k in rows if k[1] == "force")])
+    if n_triggers > 1:
+        log.info("%s: the time column restarts %d times: %d triggered records, one hit each", p, n_triggers - 1,
+                 n_triggers)
+    return hammer_test_from_records(p, channels, rows, found, names, copies, "CSV", group_word="trigger")
+
+
+def _trigger_records(col, column: int, res: float) -> list[ChannelRecord]:
+    """A column's records: one, or one per trigger where the time column steps back (a triggered export appends
+    each trigger's record with its own time stamps, from the pre-trigger's negative time, say)."""
+    t, v = col.t, col.values
+    starts = np.concatenate([[0], np.flatnonzero(np.diff(t) < 0) + 1, [t.size]])
+    if starts.size == 2:
+        return [ChannelRecord(t, v, col.unit, 0, f"column {column}", res)]
+    return [ChannelRecord(t[a:b], v[a:b], col.unit, k, f"column {column}, trigger {k}", res)
+            for k, (a, b) in enumerate(zip(starts[:-1], starts[1:]), start=1)]

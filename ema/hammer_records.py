@@ -81,11 +81,12 @@ def _on_time_base(rec: ChannelRecord, ref: ChannelRecord, dt: float) -> bool:
 
 
 def _match(p: str, name: str, copies: list[ChannelRecord], force: ChannelRecord, fname: str, dt: float, hit: int,
-           n_hits: int) -> ChannelRecord:
+           n_hits: int, word: str = "channel group") -> ChannelRecord:
     """The record of channel ``name`` that belongs to the hit whose force record is ``force``.
 
     The one copy sampled at the force's instants; where several are (a logger that restarts its time stamps at
-    every trigger), the one in the force's own channel group. None, or several without that, is refused.
+    every trigger), the one in the force's own channel group. None, or several without that, is refused. ``word``
+    names a group in messages (``"trigger"`` in a CSV table).
     """
     timed = [c for c in copies if _on_time_base(c, force, dt)]
     if len(timed) == 1:
@@ -94,7 +95,7 @@ def _match(p: str, name: str, copies: list[ChannelRecord], force: ChannelRecord,
         own = [c for c in timed if c.group == force.group]
         if n_hits > 1 and len(own) == 1:
             return own[0]
-        raise ChannelMismatchError(f"{p}: channel groups {timed[0].group} and {timed[1].group} both hold a channel "
+        raise ChannelMismatchError(f"{p}: {word}s {timed[0].group} and {timed[1].group} both hold a channel "
                                    f"{name!r} on the force's time stamps, with different data; the table cannot say "
                                    f"which one it means: rename one in the logger, or export the one of the test")
     if n_hits == 1:
@@ -108,8 +109,8 @@ def _match(p: str, name: str, copies: list[ChannelRecord], force: ChannelRecord,
         raise SamplingError(f"{p}: channel {name!r} ({rec.where}) is sampled at other instants than "
                             f"the force channel {fname!r} (first sample at {float(t[0]):.9g} s, the "
                             f"force's at {float(force.t[0]):.9g} s); H1 relates force and responses sample by sample")
-    starts = ", ".join(f"{float(c.t[0]):.6f} s (group {c.group})" for c in copies[:8])
-    raise ChannelMismatchError(f"{p}: hit {hit} (the force record of channel group {force.group}, {_span(force.t)}): "
+    starts = ", ".join(f"{float(c.t[0]):.6f} s ({word} {c.group})" for c in copies[:8])
+    raise ChannelMismatchError(f"{p}: hit {hit} (the force record of {word} {force.group}, {_span(force.t)}): "
                                f"channel {name!r} has no record on the force's time stamps (its {len(copies)} "
                                f"record{'s' if len(copies) > 1 else ''} start at {starts}); every triggered record "
                                f"needs the force and all the table's responses")
@@ -143,13 +144,13 @@ def _even_time_axis(p: str, name: str, t: np.ndarray, written: float = 0.0) -> t
 
 
 def _hit_records(p: str, found: dict, copies: dict, fkey, force: ChannelRecord, hit: int,
-                 n_hits: int) -> tuple[dict, tuple[float, float]]:
+                 n_hits: int, word: str) -> tuple[dict, tuple[float, float]]:
     """The records of one hit, keyed as the table, and the force's ``(t0, dt)``; each checked evenly sampled."""
     t0, dt = _even_time_axis(p, found[fkey], force.t, force.t_res)
     recs = {fkey: force}
     for key, name in found.items():
         if key != fkey:
-            recs[key] = _match(p, name, copies[key], force, found[fkey], dt, hit, n_hits)
+            recs[key] = _match(p, name, copies[key], force, found[fkey], dt, hit, n_hits, word)
             _even_time_axis(p, name, recs[key].t, recs[key].t_res)
     return recs, (t0, dt)
 
@@ -175,7 +176,8 @@ def _check_all_used(p: str, found: dict, copies: dict, hits: list, forces: list[
 
 
 def hammer_test_from_records(p: str, channels: pd.DataFrame, rows: dict, found: dict, names: list[str],
-                             copies: dict[tuple, list[ChannelRecord]], fmt: str) -> HammerTest:
+                             copies: dict[tuple, list[ChannelRecord]], fmt: str,
+                             group_word: str = "channel group") -> HammerTest:
     """The hammer test of the records ``copies`` (per table key, the distinct records of its file channel).
 
     Parameters
@@ -192,6 +194,8 @@ def hammer_test_from_records(p: str, channels: pd.DataFrame, rows: dict, found: 
         Per table key, the distinct records of its channel.
     fmt : str
         The format, in the history (``"MDF"``).
+    group_word : str
+        What a record's ``group`` is, in messages and the history (``"trigger"`` in a CSV table).
     """
     skipped = sorted(set(names) - set(found.values()) - {"time", "t"})
     if skipped:
@@ -202,14 +206,14 @@ def hammer_test_from_records(p: str, channels: pd.DataFrame, rows: dict, found: 
     # one force record is a continuous recording (or one hit); several are a triggered logger's hits, numbered
     # in time order (group order where a logger restarts the time stamps at every trigger)
     forces = sorted(copies[fkey], key=lambda r: (float(r.t[0]) if r.t.size else 0.0, r.group))
-    hits = [_hit_records(p, found, copies, fkey, f, i + 1, len(forces)) for i, f in enumerate(forces)]
+    hits = [_hit_records(p, found, copies, fkey, f, i + 1, len(forces), group_word) for i, f in enumerate(forces)]
     _check_all_used(p, found, copies, hits, forces)
     t0, dt = hits[0][1]
     for i, (recs, (_, dt_i)) in enumerate(hits[1:], start=2):
         n_first, n_i = forces[0].t.size, forces[i - 1].t.size
         if n_i != n_first or abs(dt_i - dt) > 1e-6 * dt:
-            raise SamplingError(f"{p}: hit {i} (channel group {forces[i - 1].group}, {_span(forces[i - 1].t)}): "
-                                f"{n_i} samples at {1 / dt_i:.6g} Hz, hit 1 (channel group {forces[0].group}) "
+            raise SamplingError(f"{p}: hit {i} ({group_word} {forces[i - 1].group}, {_span(forces[i - 1].t)}): "
+                                f"{n_i} samples at {1 / dt_i:.6g} Hz, hit 1 ({group_word} {forces[0].group}) "
                                 f"{n_first} at {1 / dt:.6g} Hz; the triggered records of one test must share the "
                                 f"rate and the record length (set the logger's trigger to a fixed length)")
     records = {}
@@ -226,7 +230,7 @@ def hammer_test_from_records(p: str, channels: pd.DataFrame, rows: dict, found: 
     force = np.stack([h[0][fkey].v * scale[fkey][0] for h in hits])
     resp = np.stack([np.stack([h[0][k].v * scale[k][0] for k in acc]) for h in hits])
     layout = ("one record per channel" if len(hits) == 1 else
-              f"{len(hits)} triggered records of {force.shape[1]} samples in channel groups "
+              f"{len(hits)} triggered records of {force.shape[1]} samples in {group_word}s "
               f"{', '.join(str(f.group) for f in forces[:12])}{' ...' if len(forces) > 12 else ''}, hits numbered in "
               f"time order")
     history = [f"read_hammer {p} ({fmt}, {layout}, {force.shape[1] * dt:.3f} s)"]

@@ -154,7 +154,8 @@ def _preamble_header(path: Path, lines: list[str], header: dict[str, str], error
     return out
 
 
-def read_wide_table(path: Path, error: type[Exception], what: str = "wide CSV file") -> WideTable:
+def read_wide_table(path: Path, error: type[Exception], what: str = "wide CSV file", *,
+                    sort: bool = True) -> WideTable:
     """Read a wide CSV table (module docstring); every damage is ``error`` naming the file, row and column.
 
     Parameters
@@ -164,6 +165,9 @@ def read_wide_table(path: Path, error: type[Exception], what: str = "wide CSV fi
         The caller's error family.
     what : str
         What the file should be, in the messages (``"wide CSV run file"``).
+    sort : bool
+        Sort each channel's samples by time (rows out of time order); False keeps the file's row order, where a
+        time column stepping back means something (a triggered export's restart).
     """
     header, skip = read_hash_header(path, error)
     with open(path, encoding="utf-8-sig") as fh:
@@ -207,7 +211,7 @@ def read_wide_table(path: Path, error: type[Exception], what: str = "wide CSV fi
             values = None
     if values is not None and not np.isnan(values[:, 0]).any():
         t = values[:, 0] * t_scale
-        if not np.all(np.diff(t) >= 0):  # rows out of time order: each channel sorted, as cell by cell
+        if sort and not np.all(np.diff(t) >= 0):  # rows out of time order: each channel sorted, as cell by cell
             order = np.argsort(t, kind="stable")
             t, values = t[order], values[order]
             blank = None if blank is None else blank[order]
@@ -215,7 +219,7 @@ def read_wide_table(path: Path, error: type[Exception], what: str = "wide CSV fi
                           WideColumn(name, t[~blank[:, j]], values[~blank[:, j], j], unit))
                    for j, (name, unit) in enumerate(names, start=1)}
     else:
-        columns = _columns_cell_by_cell(path, skip, sep, decimal_comma, cols, names, t_scale, error, what)
+        columns = _columns_cell_by_cell(path, skip, sep, decimal_comma, cols, names, t_scale, error, what, sort)
     if not columns or all(c.t.size == 0 for c in columns.values()):
         raise error(f"{path}: no samples")
     return WideTable(dict(header), columns)
@@ -266,7 +270,8 @@ def _blank_cells(path: Path, header_lines: int, sep: str, n_fields: int) -> np.n
 
 
 def _columns_cell_by_cell(path: Path, skip: int, sep: str, decimal_comma: bool, cols: list[str],
-                          names: list[tuple[str, str]], t_scale: float, error, what: str) -> dict[str, WideColumn]:
+                          names: list[tuple[str, str]], t_scale: float, error, what: str,
+                          sort: bool = True) -> dict[str, WideColumn]:
     """The channels of a table the one-pass parse does not take (a damaged cell, a quoted field, a blank time),
     read cell by cell, so that a bad cell is named by row and column."""
     try:
@@ -282,7 +287,7 @@ def _columns_cell_by_cell(path: Path, skip: int, sep: str, decimal_comma: bool, 
         present = cells.str.strip() != ""
         v = _numbers(cells[present], path, cols[j], decimal_comma, error, allow_blank=True)
         tc = t[present.to_numpy()]
-        order = np.argsort(tc, kind="stable")
+        order = np.argsort(tc, kind="stable") if sort else slice(None)
         columns[name] = WideColumn(name, tc[order], v[order], unit)
     return columns
 

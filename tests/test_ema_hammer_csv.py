@@ -118,6 +118,33 @@ def test_bad_daq_exports_are_refused_by_file_row_and_column(tmp_path):
         ema.read_hammer(write_csv(tmp_path / "miss.csv", rec.time, renamed), csv)
 
 
+def test_a_triggered_export_reads_one_hit_per_trigger(tmp_path):
+    """A DAQ's triggered export: each trigger's record appended with its own time stamps, from the pre-trigger's
+    negative time. Each restart of the time column starts a hit; the hits are the continuous recording's cut,
+    in the file's order. A trigger cut short is refused naming it and its length against the first."""
+    cut = ema.continuous.split_continuous(continuous())
+    table().to_csv(tmp_path / "channels.csv", index=False)
+    t = cut.time - cut.time[0] - 0.05
+    time = np.tile(t, cut.n_hits)
+    cols = [("Hammer [N]", cut.force.ravel())]
+    cols += [(f"ch{j} [g]", cut.responses[:, j].ravel() / G) for j in range(cut.n_channels)]
+    path = write_csv(tmp_path / "triggered.csv", time, cols)
+    test = ema.read_hammer(path, tmp_path / "channels.csv")
+    assert test.n_hits == cut.n_hits == 5 and test.n_samples == cut.n_samples
+    assert test.fs == pytest.approx(FS, rel=1e-7) and test.time[0] == pytest.approx(-0.05, abs=1e-7)
+    np.testing.assert_allclose(test.force, cut.force, rtol=1e-6, atol=1e-6 * np.abs(cut.force).max())
+    np.testing.assert_allclose(test.responses, cut.responses, rtol=1e-6, atol=1e-6 * np.abs(cut.responses).max())
+    assert any("5 triggered records of " in h and "in triggers 1, 2, 3, 4, 5" in h for h in test.history)
+    # the third trigger lost its last 100 rows
+    lines = path.read_text().splitlines()
+    n = cut.n_samples
+    del lines[1 + 3 * n - 100:1 + 3 * n]
+    (tmp_path / "short.csv").write_text("\n".join(lines) + "\n")
+    with pytest.raises(ema.SamplingError, match=rf"short\.csv: hit 3 \(trigger 3, .*\): {n - 100} samples at "
+                                                rf"3200 Hz, hit 1 \(trigger 1\) {n} at 3200 Hz"):
+        ema.read_hammer(tmp_path / "short.csv", tmp_path / "channels.csv")
+
+
 def test_the_lab_campaign_one_csv_file_per_hit_reads_as_its_uff_file(tmp_path_factory):
     folder = small_campaign(campaign_dir("control"), tmp_path_factory.mktemp("csv"))
     test = ema.read_hammer(folder / "flexural.uff", folder / "flexural_channels.csv")
