@@ -332,6 +332,25 @@ def test_a_hit_a_few_percent_off_the_point_is_kept():
     assert screen_hits(test, config=ScreeningConfig(check_coherence=False)).rejections == ()
 
 
+def lab_hits(plan, truths, seed=5) -> HammerTest:
+    """The flexural setup's hits of a virtual-lab plan, hit ``h`` synthesised from ``truths[h]`` (single pulses),
+    with the lab's noise and 24-bit converters."""
+    from lab_data.campaign import ACC_NOISE_RMS, FORCE_NOISE_RMS, FORCE_RANGE
+    from lab_data.sensors import channel_table
+
+    rng = np.random.default_rng(seed)
+    force, resp = [], []
+    for truth, hit in zip(truths, plan.hits["flexural"]):
+        _, f, a = synthesize_hit(truth, hit.pulses[:1], fs=plan.config.fs, duration=plan.config.duration,
+                                 oversample=plan.config.oversample)
+        force.append(f)
+        resp.append(a)
+    ranges = 4 * np.abs(np.array(resp)).max(axis=(0, 2))
+    force = np.array([quantise(add_noise(f, FORCE_NOISE_RMS, rng), FORCE_RANGE)[0] for f in force])
+    resp = np.array([quantise(add_noise(a, ACC_NOISE_RMS, rng), ranges)[0] for a in resp])
+    return HammerTest.from_arrays(force, resp, plan.config.fs, channel_table(plan.setups["flexural"]))
+
+
 def test_a_lab_hit_on_the_next_mark_of_the_disc_is_rejected(plans):
     """The virtual lab's control wheelset, flexural setup (29 channels, 12.8 kHz, the lab's noise): hit 4 struck at
     the nearest sensor point on the hammer's disc rim (same axial position and radius within 5 cm), along that
@@ -339,8 +358,6 @@ def test_a_lab_hit_on_the_next_mark_of_the_disc_is_rejected(plans):
     the other hits; it alone is rejected, as struck another point."""
     from ema.estimate import rest_values
     from ema.screening import force_fit
-    from lab_data.campaign import ACC_NOISE_RMS, FORCE_NOISE_RMS, FORCE_RANGE
-    from lab_data.sensors import channel_table
 
     plan = plans("control")
     setup, modal = plan.setups["flexural"], plan.modal["flexural"]
@@ -351,21 +368,63 @@ def test_a_lab_hit_on_the_next_mark_of_the_disc_is_rejected(plans):
     j = int(np.flatnonzero(rim)[np.argmin(np.linalg.norm(xyz[rim] - hammer, axis=1))])
     sense = np.sign(np.dot(acc[j].direction, setup.force.direction)) or 1.0
     other = ModalTruth(modal.freqs_hz, modal.zeta, sense * modal.output_shapes[j], modal.output_shapes)
-    rng = np.random.default_rng(5)
-    force, resp = [], []
-    for h, hit in enumerate(plan.hits["flexural"]):
-        _, f, a = synthesize_hit(other if h == 3 else modal, hit.pulses[:1], fs=plan.config.fs,
-                                 duration=plan.config.duration, oversample=plan.config.oversample)
-        force.append(f)
-        resp.append(a)
-    ranges = 4 * np.abs(np.array(resp)).max(axis=(0, 2))
-    force = np.array([quantise(add_noise(f, FORCE_NOISE_RMS, rng), FORCE_RANGE)[0] for f in force])
-    resp = np.array([quantise(add_noise(a, ACC_NOISE_RMS, rng), ranges)[0] for a in resp])
-    test = HammerTest.from_arrays(force, resp, plan.config.fs, channel_table(setup))
+    test = lab_hits(plan, [other if h == 3 else modal for h in range(6)])
     fit = force_fit(test, np.ones(test.responses.shape[:2], bool), *rest_values(test))
     assert fit.unexplained[3] > 0.3 and np.delete(fit.unexplained, 3).max() < 0.04, fit.unexplained
     scr = screen_hits(test, config=ScreeningConfig(check_coherence=False))
     assert [(r.hit, r.channel, r.reason) for r in scr.rejections] == [(4, None, "struck another point")]
+
+
+def tilted_hammer(plan):
+    """``tilted(axial_deg, across_deg)``: the flexural setup's modal truth with the hammer's direction tilted
+    towards the axle and across (each hit's participations from the truth's shapes at that direction)."""
+    from dataclasses import replace
+
+    from lab_data.truth import setup_view
+
+    setup = plan.setups["flexural"]
+    d0 = np.array(setup.force.direction)
+    axial = np.array([0.0, 1.0, 0.0]) - d0 * d0[1]
+    axial /= np.linalg.norm(axial)
+    across = np.cross(d0, axial)
+
+    def tilted(deg_axial, deg_across):
+        d = d0 + np.tan(np.radians(deg_axial)) * axial + np.tan(np.radians(deg_across)) * across
+        st = replace(setup, force=replace(setup.force, direction=tuple(d / np.linalg.norm(d))))
+        v = setup_view(plan.truth, st, plan.points)
+        return ModalTruth(v.freqs_hz, v.zeta, v.input_shape, v.output_shapes)
+
+    return tilted
+
+
+@pytest.mark.parametrize("seed", [3, 4])
+def test_a_hand_held_hammers_direction_scatter_is_no_fault(plans, seed):
+    """The lab's hammer direction tilted at random by 3 degrees RMS from hit to hit: the modes excited through the
+    tilt change by some 20 % from hit to hit, which moves a channel's peak against the other hits' prediction to
+    0.79-1.5 x and its growth with the force to a power of 0.3, where identical hits give 0.97-1.07 x and 0.93-1.04.
+    Judged against the hits' own spread (and the power with 95 % confidence over the channels), every hit is kept.
+    These two draws are ones where the fixed limits called a channel clipped (in one hit; in every hit)."""
+    from ema.estimate import rest_values
+    from ema.screening import peak_compression
+
+    plan = plans("control")
+    tilted = tilted_hammer(plan)
+    test = lab_hits(plan, [tilted(*a) for a in np.random.default_rng(seed).normal(0.0, 3.0, (6, 2))])
+    compression, _ = peak_compression(test, np.ones(test.responses.shape[:2], bool), *rest_values(test))
+    assert np.nanmin(compression) < 0.82 and np.nanmax(compression) > 1.2  # the scatter is there
+    assert screen_hits(test, config=ScreeningConfig(check_coherence=False)).rejections == ()
+
+
+def test_a_blow_tilted_far_from_the_others_is_rejected(plans):
+    """One hit of six tilted 20 degrees towards the axle (its axial modes excited 2.3 times as much as at the
+    nominal 14-degree tilt): 6.6 % of its response power unexplained against the others' 2.3 %, rejected as struck
+    another point, and it alone."""
+    plan = plans("control")
+    off = plan.modal["flexural"]
+    test = lab_hits(plan, [tilted_hammer(plan)(20.0, 0.0) if h == 1 else off for h in range(6)])
+    rejections = screen_hits(test, config=ScreeningConfig(check_coherence=False)).rejections
+    assert [(r.hit, r.channel, r.reason) for r in rejections] == [(2, None, "struck another point")]
+    assert float(rejections[0].detail.split(" % of its response")[0]) == pytest.approx(6.6, abs=1.0)
 
 
 @pytest.mark.parametrize("level", [1.0, 0.7, 0.5])
