@@ -4,7 +4,8 @@ The readers of such files (:mod:`ema.hammer_mdf`, :mod:`ema.hammer_csv`) collect
 file the channel table asks for, its distinct records: time stamps, values, unit and where they sit (an MDF
 channel group, a CSV column). :func:`match_names` finds the table's names in the file;
 :func:`hammer_test_from_records` makes the test: one hit per force record (several are a triggered logger's
-hits, numbered in time order); each response the copy sampled at its force record's instants, or, where several
+hits, numbered in time order, or in the file's order where their time stamps overlap, restarting at every
+trigger); each response the copy sampled at its force record's instants, or, where several
 are, the one in the force's own group. Every refusal names the file, the channel and, where there are several,
 the hit (module docstring of :mod:`ema.hammer_mdf`).
 """
@@ -206,6 +207,10 @@ def hammer_test_from_records(p: str, channels: pd.DataFrame, rows: dict, found: 
     # one force record is a continuous recording (or one hit); several are a triggered logger's hits, numbered
     # in time order (group order where a logger restarts the time stamps at every trigger)
     forces = sorted(copies[fkey], key=lambda r: (float(r.t[0]) if r.t.size else 0.0, r.group))
+    if any(b.t.size and a.t.size and b.t[0] <= a.t[-1] for a, b in zip(forces, forces[1:])):
+        # the records overlap in time: the stamps restart at every trigger (a trigger's jitter moves its first
+        # stamp by a fraction of a sample, which says nothing of the order)
+        forces = sorted(copies[fkey], key=lambda r: r.group)
     hits = [_hit_records(p, found, copies, fkey, f, i + 1, len(forces), group_word) for i, f in enumerate(forces)]
     _check_all_used(p, found, copies, hits, forces)
     t0, dt = hits[0][1]

@@ -125,7 +125,9 @@ def test_a_triggered_export_reads_one_hit_per_trigger(tmp_path):
     cut = ema.continuous.split_continuous(continuous())
     table().to_csv(tmp_path / "channels.csv", index=False)
     t = cut.time - cut.time[0] - 0.05
-    time = np.tile(t, cut.n_hits)
+    # each trigger's stamps from its own trigger instant: a jitter of a fraction of a sample, earlier in the later
+    # triggers, must not reorder the hits
+    time = np.concatenate([t - 1e-5 * k for k in range(cut.n_hits)])
     cols = [("Hammer [N]", cut.force.ravel())]
     cols += [(f"ch{j} [g]", cut.responses[:, j].ravel() / G) for j in range(cut.n_channels)]
     path = write_csv(tmp_path / "triggered.csv", time, cols)
