@@ -25,13 +25,15 @@ an auto-range from the nominal hits (four times the largest peak, rounded up
 to the 1-2-5 series), except the overloaded channel's custom range of 1.05
 times its largest nominal peak; the ADC has 24 bits; accelerometers add 5e-3 m/s² RMS
 noise (a 100 mV/g ICP sensor and front end), the force sensor 0.05 N RMS.
+Every hit strikes along the setup's hammer direction, unless ``hammer_scatter_deg`` tilts each blow at random
+(a hand-held hammer's scatter; the tilts are in the manifest's hits).
 """
 
 from __future__ import annotations
 
 import json
 import logging
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Callable
 
@@ -41,7 +43,8 @@ from .fe_styles import FE_STYLES, DesignExport, beam_export, mesh_export, sensor
 from .hammer import ModalTruth, Pulse, add_noise, quantise, synthesize_hit
 from .nastran_punch import write_punch_eigenvectors
 from .scenarios import Scenario, get_scenario
-from .sensors import SETUP_NAMES, Setup, channel_table, make_setup, point_rows, points_frame
+from .sensors import (SETUP_NAMES, Setup, channel_table, make_setup, point_rows, points_frame, shape_matrix,
+                      tilted_direction)
 from .truth import BAND_HZ, SetupView, SolvedModel, check_spectral_gap, design_modes, setup_view, truncated, truth_modes
 from .uff_export import TimeHistory, write_fe_uff, write_time_histories
 from .wheelset import WheelsetParameters
@@ -79,6 +82,9 @@ class CampaignConfig:
     #: Style of the design FE export (:data:`lab_data.fe_styles.FE_STYLES`): ``mesh`` (the lab's 3D model) or
     #: ``beam`` (a design office's rotor-dynamics model: beam axle, lumped masses, rims on web springs).
     fe_style: str = "mesh"
+    #: RMS tilt [deg] of each hit's blow about the setup's hammer direction, drawn per hit towards the axle and
+    #: about it (a hand-held hammer's scatter); 0: every hit along the same direction.
+    hammer_scatter_deg: float = 0.0
 
     def __post_init__(self) -> None:
         get_scenario(self.scenario)
@@ -98,6 +104,8 @@ class CampaignConfig:
             raise ValueError(f"fe_max_hz must cover the analysis band, got {self.fe_max_hz}")
         if self.fe_export_hz is not None and self.fe_export_hz < self.fe_max_hz:
             raise ValueError(f"fe_export_hz ({self.fe_export_hz}) must be >= fe_max_hz ({self.fe_max_hz})")
+        if not 0.0 <= self.hammer_scatter_deg <= 20.0:
+            raise ValueError(f"hammer_scatter_deg must be within 0-20 degrees, got {self.hammer_scatter_deg}")
 
     @property
     def export_hz(self) -> float:
@@ -111,6 +119,8 @@ class HitPlan:
     pulses: tuple[Pulse, ...]
     double: bool
     overload: bool
+    #: the blow's tilt [deg] from the setup's hammer direction, towards the axle and about it
+    tilt_deg: tuple[float, float] = (0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -190,6 +200,11 @@ def plan_campaign(config: CampaignConfig = CampaignConfig(), params: WheelsetPar
         views[name] = view
         modal[name] = ModalTruth(view.freqs_hz, view.zeta, view.input_shape, view.output_shapes)
         hits[name] = _draw_hits(config, np.random.default_rng([config.seed, SETUP_NAMES.index(name)]))
+        if config.hammer_scatter_deg > 0:
+            # a stream of its own: the hits of a campaign without scatter stay as they were
+            tilt = np.random.default_rng([config.seed, 300 + SETUP_NAMES.index(name)]).normal(
+                0.0, config.hammer_scatter_deg, (len(hits[name]), 2))
+            hits[name] = tuple(replace(h, tilt_deg=(float(a), float(b))) for h, (a, b) in zip(hits[name], tilt))
     return CampaignPlan(
         config, scenario, params, design, export.freqs_hz, export.shapes, truth, setups, views, modal, hits,
         export.pairs, points, export,
@@ -215,9 +230,21 @@ def _direction_code(d: tuple[float, float, float]) -> int:
     return 0
 
 
+def hit_truth(plan: CampaignPlan, setup_name: str, hit: HitPlan) -> ModalTruth:
+    """The modal model one hit excites: the setup's, with the participations at the hit's tilted blow (in the
+    setup's basis of degenerate modes, so that every hit's responses share its output shapes)."""
+    modal = plan.modal[setup_name]
+    if hit.tilt_deg == (0.0, 0.0):
+        return modal
+    force = plan.setups[setup_name].force
+    b = shape_matrix(plan.truth.model, plan.views[setup_name].shapes_full, [force.fe_node], [force.position],
+                     [tilted_direction(force.direction, *hit.tilt_deg)])[0]
+    return ModalTruth(modal.freqs_hz, modal.zeta, b, modal.output_shapes)
+
+
 def _synthesise(plan: CampaignPlan, setup_name: str, hit: HitPlan) -> tuple[np.ndarray, np.ndarray]:
     c = plan.config
-    _, force, acc = synthesize_hit(plan.modal[setup_name], hit.pulses, fs=c.fs, duration=c.duration,
+    _, force, acc = synthesize_hit(hit_truth(plan, setup_name, hit), hit.pulses, fs=c.fs, duration=c.duration,
                                    oversample=c.oversample)
     return force, acc
 
@@ -319,6 +346,7 @@ def write_campaign(
                     "overload": h.overload,
                     "clipped_nodes": clipped,
                     "clipped_samples": int(acc_clip.sum()),
+                    "tilt_deg": list(h.tilt_deg),
                 }
             )
         say(f"setup {name}: writing {len(histories)} UFF58 datasets")

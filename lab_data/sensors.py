@@ -27,7 +27,7 @@ from .fe_model import FEModel
 from .wheelset import NODE, WheelsetParameters
 
 __all__ = ["Sensor", "Setup", "SETUP_NAMES", "make_setup", "channel_table", "points_table", "points_frame",
-           "point_rows", "shape_matrix"]
+           "point_rows", "shape_matrix", "tilted_direction"]
 
 SETUP_NAMES = ("flexural", "torsional")
 
@@ -136,6 +136,19 @@ def make_setup(name: str, model: FEModel, p: WheelsetParameters = WheelsetParame
     force = Sensor(FORCE_NODE, "hammer", "force", "N", (r * np.cos(t), -p.disc_y, r * np.sin(t)),
                    tuple(float(v) for v in direction), fe)
     return Setup(name, force, tuple(acc))
+
+
+def tilted_direction(direction, axial_deg: float, across_deg: float) -> tuple[float, float, float]:
+    """A blow's direction tilted from ``direction`` by ``axial_deg`` towards the axle's axis (+y, in the plane of
+    the direction and the axis) and by ``across_deg`` normal to that plane: a hand-held hammer's direction varies by
+    a few degrees from hit to hit."""
+    d0 = np.asarray(direction, float)
+    d0 = d0 / np.linalg.norm(d0)
+    axial = np.array([0.0, 1.0, 0.0]) - d0 * d0[1]
+    axial /= np.linalg.norm(axial)
+    across = np.cross(d0, axial)
+    d = d0 + np.tan(np.radians(axial_deg)) * axial + np.tan(np.radians(across_deg)) * across
+    return tuple(float(v) for v in d / np.linalg.norm(d))
 
 
 def channel_table(setup: Setup) -> pd.DataFrame:

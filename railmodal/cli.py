@@ -102,7 +102,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         fe_max_hz = DESIGN_FE_MAX_HZ[args.design] if args.fe_max_hz is None else args.fe_max_hz
         written = simulate(args.scenario, tmp, progress=None if args.quiet else _progress, design=args.design,
                            fe_max_hz=fe_max_hz, fe_export_hz=args.fe_export_hz, fe_style=args.fe_style,
-                           seed=args.seed, n_hits=args.hits)
+                           seed=args.seed, n_hits=args.hits, hammer_scatter_deg=args.hammer_scatter)
     files = {key: Path(args.out) / path.relative_to(tmp) for key, path in written.items()}
     _describe_campaign(files)
     print(f"done in {time.perf_counter() - t0:.1f} s")
@@ -370,6 +370,10 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--seed", type=bounded_int("--seed", 0, 2**32 - 1), default=1863,
                      help="random seed of hits and noise")
     sim.add_argument("--hits", type=bounded_int("--hits", 5, 100), default=6, help="hits per setup, 5 to 100")
+    sim.add_argument("--hammer-scatter", type=bounded_float("--hammer-scatter", 0.0, 20.0, unit="degrees"),
+                     default=0.0, metavar="DEG",
+                     help="RMS tilt of each blow about the setup's hammer direction, drawn per hit (a hand-held "
+                          "hammer's scatter, e.g. 3); default 0: every hit along one direction")
     sim.set_defaults(func=_cmd_simulate)
     sc = lab_sub.add_parser("scenarios", help="list the scenarios")
     sc.set_defaults(func=_cmd_scenarios)

@@ -170,6 +170,37 @@ def test_bad_configuration_is_refused_with_a_clear_message():
         plan_campaign(CampaignConfig(fe_max_hz=424.6))
     with pytest.raises(ValueError, match="fe_export_hz .* must be >= fe_max_hz"):
         CampaignConfig(fe_export_hz=400.0)
+    with pytest.raises(ValueError, match="hammer_scatter_deg must be within 0-20 degrees, got -1"):
+        CampaignConfig(hammer_scatter_deg=-1.0)
+
+
+def test_a_tilted_blow_excites_the_modes_its_direction_projects_on():
+    """tilted_direction turns the hammer's direction by the angles asked (towards the axle raises its axial
+    component; about that plane leaves it but for the cosine), and hit_truth's participations are the force point's modal displacement
+    along the tilted direction: the sum of its components along x, y and z weighted by the direction's."""
+    from dataclasses import replace
+
+    from lab_data.campaign import hit_truth
+    from lab_data.sensors import shape_matrix, tilted_direction
+
+    plan = plan_campaign(CampaignConfig())
+    hit = plan.hits["flexural"][0]
+    assert hit.tilt_deg == (0.0, 0.0) and hit_truth(plan, "flexural", hit) is plan.modal["flexural"]
+    force = plan.setups["flexural"].force
+    d0 = np.array(force.direction)
+    towards = np.array(tilted_direction(d0, 5.0, 0.0))
+    about = np.array(tilted_direction(d0, 0.0, 5.0))
+    assert np.degrees(np.arccos(towards @ d0)) == pytest.approx(5.0, abs=1e-6) and towards[1] > d0[1]
+    # about the axle-ward plane: the turn is normal to it, so the axial component only shrinks with the cosine
+    assert np.degrees(np.arccos(about @ d0)) == pytest.approx(5.0, abs=1e-6)
+    assert about[1] == pytest.approx(d0[1] * np.cos(np.radians(5.0)), rel=1e-12)
+    d = np.array(tilted_direction(d0, 5.0, -3.0))
+    b = hit_truth(plan, "flexural", replace(hit, tilt_deg=(5.0, -3.0))).input_shape
+    xyz = shape_matrix(plan.truth.model, plan.views["flexural"].shapes_full, [force.fe_node] * 3,
+                       [force.position] * 3, list(np.eye(3)))
+    np.testing.assert_allclose(b, d @ xyz, rtol=1e-9, atol=1e-12 * np.abs(b).max())
+    np.testing.assert_allclose(plan.modal["flexural"].input_shape, d0 @ xyz, rtol=1e-9,
+                               atol=1e-12 * np.abs(b).max())
 
 
 def test_a_richer_fe_export_leaves_the_truth_in_the_band():

@@ -376,25 +376,14 @@ def test_a_lab_hit_on_the_next_mark_of_the_disc_is_rejected(plans):
 
 
 def tilted_hammer(plan):
-    """``tilted(axial_deg, across_deg)``: the flexural setup's modal truth with the hammer's direction tilted
-    towards the axle and across (each hit's participations from the truth's shapes at that direction)."""
+    """``tilted(axial_deg, across_deg)``: the flexural setup's modal truth for a blow tilted towards the axle and
+    about it (:func:`lab_data.campaign.hit_truth`)."""
     from dataclasses import replace
 
-    from lab_data.truth import setup_view
+    from lab_data.campaign import hit_truth
 
-    setup = plan.setups["flexural"]
-    d0 = np.array(setup.force.direction)
-    axial = np.array([0.0, 1.0, 0.0]) - d0 * d0[1]
-    axial /= np.linalg.norm(axial)
-    across = np.cross(d0, axial)
-
-    def tilted(deg_axial, deg_across):
-        d = d0 + np.tan(np.radians(deg_axial)) * axial + np.tan(np.radians(deg_across)) * across
-        st = replace(setup, force=replace(setup.force, direction=tuple(d / np.linalg.norm(d))))
-        v = setup_view(plan.truth, st, plan.points)
-        return ModalTruth(v.freqs_hz, v.zeta, v.input_shape, v.output_shapes)
-
-    return tilted
+    hit = plan.hits["flexural"][0]
+    return lambda axial, across: hit_truth(plan, "flexural", replace(hit, tilt_deg=(float(axial), float(across))))
 
 
 @pytest.mark.parametrize("seed", [3, 4])
