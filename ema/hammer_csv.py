@@ -12,8 +12,10 @@ table selects the columns **by name**, as for an MDF file (:mod:`ema.hammer_reco
 FE nodes come from the table; units and sensitivities follow :func:`ema.hammer_io.unit_scale`. A file is one
 record per channel: a continuous recording, which :func:`ema.read_hammer` cuts into hits at the impacts, or one
 hit (several files of one hit each make a test, as UFF files do). A triggered export appends one record per
-trigger, each with its own time stamps: where the time column steps back, a new trigger starts, and each trigger
-is one hit (numbered in the file's order; every trigger must hold the same number of samples at the same rate).
+trigger: where the time column steps back (each trigger's own stamps), or jumps forward between records of one
+length (absolute trigger times), a new trigger starts, and each trigger is one hit (numbered in the file's order;
+every trigger must hold the same number of samples at the same rate). A forward jump between records of
+different lengths is a gap in one recording (lost samples), and refused as such.
 
 The time column is decimal text: an export that writes it to, say, 6 decimals rounds every stamp by up to half a
 microsecond, which at 12.8 kHz is 0.6 % of the sampling interval. The stamps are judged evenly spaced within
@@ -103,17 +105,35 @@ def read_hammer_csv(path: Path, channels: pd.DataFrame) -> HammerTest:
     copies = {key: _trigger_records(table.columns[name], column[name], res) for key, name in found.items()}
     n_triggers = len(copies[next(k for k in rows if k[1] == "force")])
     if n_triggers > 1:
-        log.info("%s: the time column restarts %d times: %d triggered records, one hit each", p, n_triggers - 1,
-                 n_triggers)
+        log.info("%s: the time column steps back or jumps between %d records: %d triggers, one hit each", p,
+                 n_triggers, n_triggers)
     return hammer_test_from_records(p, channels, rows, found, names, copies, "CSV", group_word="trigger")
 
 
 def _trigger_records(col, column: int, res: float) -> list[ChannelRecord]:
-    """A column's records: one, or one per trigger where the time column steps back (a triggered export appends
-    each trigger's record with its own time stamps, from the pre-trigger's negative time, say)."""
+    """A column's records: one, or one per trigger (a triggered export appends each trigger's record).
+
+    A trigger starts where the time column steps back (each record's own stamps, from the pre-trigger's negative
+    time, say), or jumps forward when every record so delimited holds the same number of samples (absolute trigger
+    times: a fixed record length per trigger). A forward jump that leaves records of different lengths is a gap
+    in one recording (lost samples), left for the time-axis check to refuse.
+    """
     t, v = col.t, col.values
-    starts = np.concatenate([[0], np.flatnonzero(np.diff(t) < 0) + 1, [t.size]])
+    steps = np.diff(t)
+    back = steps < 0
+    forward = np.zeros_like(back)
+    if np.any(steps > 0):
+        dt = float(np.median(steps[steps > 0]))
+        forward = steps > 1.5 * dt + res
+    starts = _bounds(back | forward, t.size)
+    if forward.any() and len(set(np.diff(starts).tolist())) > 1:
+        starts = _bounds(back, t.size)
     if starts.size == 2:
         return [ChannelRecord(t, v, col.unit, 0, f"column {column}", res)]
     return [ChannelRecord(t[a:b], v[a:b], col.unit, k, f"column {column}, trigger {k}", res)
             for k, (a, b) in enumerate(zip(starts[:-1], starts[1:]), start=1)]
+
+
+def _bounds(cut: np.ndarray, n: int) -> np.ndarray:
+    """Record boundaries ``[0, ..., n]`` from the steps after which a new record starts."""
+    return np.concatenate([[0], np.flatnonzero(cut) + 1, [n]])

@@ -147,6 +147,28 @@ def test_a_triggered_export_reads_one_hit_per_trigger(tmp_path):
         ema.read_hammer(tmp_path / "short.csv", tmp_path / "channels.csv")
 
 
+def test_a_triggered_export_with_absolute_times_and_a_recording_with_lost_samples(tmp_path):
+    """Absolute trigger times (trigger k's record from 10 k s on, one length for all): each jump forward starts a
+    hit, and the hits are the recording's cut. A continuous recording that lost 320 samples jumps forward once,
+    between records of different lengths: a gap, refused as such with its time."""
+    cut = ema.continuous.split_continuous(continuous())
+    table().to_csv(tmp_path / "channels.csv", index=False)
+    t = cut.time - cut.time[0] - 0.05
+    cols = [("Hammer [N]", cut.force.ravel())]
+    cols += [(f"ch{j} [g]", cut.responses[:, j].ravel() / G) for j in range(cut.n_channels)]
+    path = write_csv(tmp_path / "absolute.csv", np.concatenate([10.0 * k + t for k in range(cut.n_hits)]), cols)
+    test = ema.read_hammer(path, tmp_path / "channels.csv")
+    assert test.n_hits == cut.n_hits and test.n_samples == cut.n_samples
+    np.testing.assert_allclose(test.responses, cut.responses, rtol=1e-6, atol=1e-6 * np.abs(cut.responses).max())
+    rec = continuous(rebound_after=None)
+    keep = np.r_[0:20000, 20320:rec.n_samples]
+    lossy = write_csv(tmp_path / "lossy.csv", rec.time[keep],
+                      [(h, v[keep]) for h, v in toy_columns(rec)])
+    with pytest.raises(ema.SamplingError, match=r"lossy\.csv: channel 'Hammer': a gap of 0\.100\d* s \(320 samples "
+                                                r"lost\?\) at t = 6\.2496\d* s"):
+        ema.read_hammer(lossy, tmp_path / "channels.csv")
+
+
 def test_the_lab_campaign_one_csv_file_per_hit_reads_as_its_uff_file(tmp_path_factory):
     folder = small_campaign(campaign_dir("control"), tmp_path_factory.mktemp("csv"))
     test = ema.read_hammer(folder / "flexural.uff", folder / "flexural_channels.csv")
