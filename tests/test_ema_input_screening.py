@@ -289,6 +289,36 @@ OTHER_POINTS = {
 }
 
 
+@pytest.mark.parametrize("seed", [3, 6])
+def test_two_hits_that_disagree_are_named_though_neither_can_be_rejected(seed, caplog):
+    """A test of two hits: the force check needs a third, so nothing is rejected; but hit 2's force clipped at
+    0.7 before the filter makes hit 1's FRF 1.5 dB below hit 2's (fitted as A_1 F_2 = r A_2 F_1 on lines 20 dB
+    above each record's pre-trigger noise), and a WARNING names both hits. Two clean hits agree within 0.01 dB
+    and are averaged in without a word. Seed 6 is a draw whose clipped force spectrum has a near-zero line in the
+    band, which a ratio of FRFs would have made a -29 dB disagreement."""
+    from ema.estimate import rest_values
+    from ema.screening import pair_offset
+
+    force, resp = toy_hits(n_hits=2, seed=seed)
+    clean = HammerTest.from_arrays(force, resp, FS, toy_table())
+    assert 20 * np.log10(pair_offset(clean, np.ones((2, 3), bool), *rest_values(clean))[1]) == pytest.approx(
+        0.0, abs=0.01)
+    with caplog.at_level(logging.WARNING, logger="ema"):
+        assert screen_hits(clean, config=ScreeningConfig(check_coherence=False)).rejections == ()
+    assert not [r for r in caplog.records if r.levelno >= logging.WARNING]
+    force[1] = rounded_clip(force[1], 0.7)
+    test = HammerTest.from_arrays(force, resp, FS, toy_table())
+    (rows, ratio) = pair_offset(test, np.ones((2, 3), bool), *rest_values(test))
+    assert rows == (0, 1) and 20 * np.log10(ratio) == pytest.approx(-1.55, abs=0.15)
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="ema"):
+        scr = screen_hits(test, config=ScreeningConfig(check_coherence=False))
+    assert scr.rejections == () and scr.accepted.all()
+    (warning,) = [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING]
+    assert f"hits 1 and 2, the only two accepted, disagree: hit 1's FRF is {ratio:.3f} x hit 2's" in warning
+    assert "take a third hit" in warning
+
+
 @pytest.mark.parametrize("case", list(OTHER_POINTS))
 def test_a_hit_at_another_point_is_rejected_by_its_response_pattern(case):
     """Hit 3 struck at another point: its responses follow that point's FRF column, which departs from the others'
