@@ -461,6 +461,19 @@ MIN_LINE_COHERENCE = 0.9
 MIN_TIP_LINES = 16
 
 
+def _force_spectra(test: HammerTest, f_rest: np.ndarray, rows: np.ndarray
+                   ) -> tuple[np.ndarray, list[tuple[int, int]]]:
+    """The spectra of the hits ``rows``' forces about their rest values through the default force window (which
+    keeps the force noise after the pulse out of them, as in the estimate), and each main pulse's start and end."""
+    n = test.n_samples
+    pulses, windows = [], []
+    for h in rows:
+        start, _, end, _ = main_pulse(test.force[h])
+        pulses.append((start, end))
+        windows.append(_pulse_window(n, test.fs, start, end, ForceWindow()))
+    return np.fft.rfft((test.force[rows] - f_rest[rows, None]) * np.array(windows), axis=1), pulses
+
+
 @dataclass(frozen=True)
 class ForceFit:
     """Each hit against the force its own responses imply through the other hits' FRF (:func:`force_fit`).
@@ -514,12 +527,7 @@ def force_fit(test: HammerTest, accepted: np.ndarray, f_rest: np.ndarray, a_rest
     hit_ok = accepted.any(axis=1)
     if np.count_nonzero(hit_ok) < 3:
         return ForceFit(ratio, peak_ratio, unexplained, tip_power)
-    # the force window keeps the force noise after the pulse out of the spectra, as in the estimate
-    windows = []
-    for f in test.force:
-        start, _, end, _ = main_pulse(f)
-        windows.append(_pulse_window(n, test.fs, start, end, ForceWindow()))
-    F = np.fft.rfft((test.force - f_rest[:, None]) * np.array(windows), axis=1)
+    F, _ = _force_spectra(test, f_rest, np.arange(test.n_hits))
     A = np.fft.rfft(test.responses - a_rest[:, :, None], axis=2)
     power = np.abs(F) ** 2
     # sums over every usable hit, from which each hit's own term is taken out (leave one out)
@@ -597,16 +605,14 @@ def pair_offset(test: HammerTest, accepted: np.ndarray, f_rest: np.ndarray, a_re
     if rows.size != 2:
         return None
     chans = np.flatnonzero(accepted[rows].all(axis=0))
-    n = test.n_samples
-    F, A, ok = [], [], []
-    for h in rows:
-        start, _, end, _ = main_pulse(test.force[h])
+    F, pulses = _force_spectra(test, f_rest, rows)
+    A, ok = [], []
+    for h, (start, end) in zip(rows, pulses):
         stop = start - (end - start + 1)
         if stop < MIN_NOISE_SAMPLES or chans.size == 0:
             return None
         a = test.responses[h, chans] - a_rest[h, chans][:, None]
-        noise = n * np.var(a[:, :stop], axis=1)
-        F.append(np.fft.rfft((test.force[h] - f_rest[h]) * _pulse_window(n, test.fs, start, end, ForceWindow())))
+        noise = test.n_samples * np.var(a[:, :stop], axis=1)
         A.append(np.fft.rfft(a, axis=1))
         ok.append(np.abs(A[-1]) ** 2 >= PAIR_SNR * noise[:, None])
     power = np.abs(F[0]) ** 2 + np.abs(F[1]) ** 2
@@ -635,6 +641,12 @@ def _outlier_limits(x: np.ndarray, floor: float) -> np.ndarray:
         if o.size >= 3:
             out[h] = max(floor, OUTLIER_SPREADS * 1.4826 * float(np.median(np.abs(o - np.median(o)))))
     return out
+
+
+def _limit_text(value: float, floor: float, unit: str, scale: float = 1.0) -> str:
+    """A limit for a message: ``value`` (x ``scale``) in ``unit``, said to be the hits' spread when above ``floor``."""
+    spread = f", {OUTLIER_SPREADS:g} x the other hits' spread" if value > floor else ""
+    return f"limit {scale * value:.3g}{unit}{spread}"
 
 
 def _db_move(ratio: float) -> str:
@@ -893,21 +905,17 @@ def screen_hits(
             break
         h = int(np.argmax(score))
         others = int(np.count_nonzero(accepted.any(axis=1))) - 1
-
-        def limit(value, floor, unit, scale=1.0):
-            spread = f", {OUTLIER_SPREADS:g} x the other hits' spread" if value > floor else ""
-            return f"limit {scale * value:.3g}{unit}{spread}"
-
         force_part = (f"the force spectrum is {f_ratio[h]:.3f} x the one its responses imply through the other "
                       f"{others} hits' FRF in the hammer tip's band, its peak {f_peak[h]:.3f} x (relative to the other "
-                      f"hits'; {limit(lim_db[h], cfg.max_force_offset_db, ' dB')})")
+                      f"hits'; {_limit_text(lim_db[h], cfg.max_force_offset_db, ' dB')})")
         if excess[h] > lim_share[h]:
             reject(test.hits[h], None, "struck another point",
                    f"{100 * u[h]:.1f} % of its response power (median over the hammer tip's band) is not explained by "
                    f"any force at the point of the other {others} hits, against the {100 * (u[h] - excess[h]):.1f} % "
-                   f"theirs leave at its force ({limit(lim_share[h], cfg.max_unexplained_share, ' % more', 100.0)}): "
-                   f"its responses follow another column of the FRF matrix (another point, or another direction of "
-                   f"the blow), which averaged in would mix two driving points into every FRF; {force_part}")
+                   f"theirs leave at its force "
+                   f"({_limit_text(lim_share[h], cfg.max_unexplained_share, ' % more', 100)}): its responses "
+                   f"follow another column of the FRF matrix (another point, or another direction of the blow), "
+                   f"which averaged in would mix two driving points into every FRF; {force_part}")
         elif not f_ratio[h] > 0:
             # one transducer cannot change its polarity between hits; the structure answered a force the other way
             reject(test.hits[h], None, "struck another point",
