@@ -105,8 +105,8 @@ def read_hammer_csv(path: Path, channels: pd.DataFrame) -> HammerTest:
     copies = {key: _trigger_records(table.columns[name], column[name], res) for key, name in found.items()}
     n_triggers = len(copies[next(k for k in rows if k[1] == "force")])
     if n_triggers > 1:
-        log.info("%s: the time column steps back or jumps between %d records: %d triggers, one hit each", p,
-                 n_triggers, n_triggers)
+        log.info("%s: %d triggers (the time column steps back or jumps forward between them), one hit each", p,
+                 n_triggers)
     return hammer_test_from_records(p, channels, rows, found, names, copies, "CSV", group_word="trigger")
 
 

@@ -205,12 +205,12 @@ def hammer_test_from_records(p: str, channels: pd.DataFrame, rows: dict, found: 
                     ", ".join(repr(n) for n in skipped[:20]) + (" ..." if len(skipped) > 20 else ""))
     fkey = next(k for k in rows if k[1] == "force")
     # one force record is a continuous recording (or one hit); several are a triggered logger's hits, numbered
-    # in time order (group order where a logger restarts the time stamps at every trigger)
+    # in time order, or in group order where the records overlap in time: the stamps restart at every trigger,
+    # and a trigger's jitter moves its first stamp by a fraction of a sample, which says nothing of the order
     forces = sorted(copies[fkey], key=lambda r: (float(r.t[0]) if r.t.size else 0.0, r.group))
-    if any(b.t.size and a.t.size and b.t[0] <= a.t[-1] for a, b in zip(forces, forces[1:])):
-        # the records overlap in time: the stamps restart at every trigger (a trigger's jitter moves its first
-        # stamp by a fraction of a sample, which says nothing of the order)
-        forces = sorted(copies[fkey], key=lambda r: r.group)
+    restarted = any(b.t.size and a.t.size and b.t[0] <= a.t[-1] for a, b in zip(forces, forces[1:]))
+    if restarted:
+        forces = sorted(forces, key=lambda r: r.group)
     hits = [_hit_records(p, found, copies, fkey, f, i + 1, len(forces), group_word) for i, f in enumerate(forces)]
     _check_all_used(p, found, copies, hits, forces)
     t0, dt = hits[0][1]
@@ -237,7 +237,7 @@ def hammer_test_from_records(p: str, channels: pd.DataFrame, rows: dict, found: 
     layout = ("one record per channel" if len(hits) == 1 else
               f"{len(hits)} triggered records of {force.shape[1]} samples in {group_word}s "
               f"{', '.join(str(f.group) for f in forces[:12])}{' ...' if len(forces) > 12 else ''}, hits numbered in "
-              f"time order")
+              f"{'the file' if restarted else 'time'} order")
     history = [f"read_hammer {p} ({fmt}, {layout}, {force.shape[1] * dt:.3f} s)"]
     history += unit_notes(p, rows, scale, has_sens)
     renamed = [f"{rows[k].name!r} as {n!r}" for k, n in found.items() if n != str(rows[k].name)]
