@@ -121,11 +121,15 @@ def fe_unit_slip(fe, position, node_xyz, limit: float, node=None) -> str:
     x = np.asarray(node_xyz, float)
     size = model_size(fe)
     lo, hi = WHEELSET_SIZE_M
-    if _units_stated(fe):
+    if _units_stated(fe) and fe.format == "ansys-rst":
+        why = (f" although the file is read as {fe.units}: the model's /UNITS or material data are wrong; solve "
+               f"it with /UNITS and materials in one consistent system")
+    elif _units_stated(fe):
         why = (f" although the file states {fe.units}: its units dataset 164 is wrong; export the FE in SI units "
                f"(m) with a matching dataset 164")
     else:
-        why = (" (the file states no units: UFF without dataset 164, or a Nastran file); the points are in metres: "
+        why = (" (the file states no units: UFF without dataset 164, a Nastran file, or an ANSYS result without "
+               "/UNITS whose materials do not tell); the points are in metres: "
                "export the FE in SI units (m)" + (", or add a units dataset 164" if fe.format == "uff" else ""))
     what = f"node {node}" if node is not None else "the node"
     for factor, unit in UNIT_SLIPS:

@@ -28,12 +28,15 @@ DOF_NAMES = ("ux", "uy", "uz", "rx", "ry", "rz")
 
 #: Consistent unit systems of FE solvers -> (file length units per metre, kg per file mass unit); the mass unit is
 #: force x s² / length: mm-t-s (N, the usual Nastran/Abaqus set for steel structures), mm-kg-s (mN), in-lbf-s
-#: (lbf s²/in = 175.1268 kg)
+#: (lbf s²/in = 175.1268 kg), and ANSYS's other /UNITS: cm-g-s (CGS, dyne), ft-slug-s (BFT, lbf), um-kg-s (uMKS, µN)
 UNIT_SYSTEMS: dict[str, tuple[float, float]] = {
     "m-kg-s": (1.0, 1.0),
     "mm-t-s": (1000.0, 1000.0),
     "mm-kg-s": (1000.0, 1.0),
     "in-lbf-s": (1.0 / 0.0254, 0.45359237 * 9.80665 / 0.0254),
+    "cm-g-s": (100.0, 1e-3),
+    "ft-slug-s": (1.0 / 0.3048, 0.45359237 * 9.80665 / 0.3048),
+    "um-kg-s": (1e6, 1.0),
 }
 
 

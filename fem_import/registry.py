@@ -35,6 +35,8 @@ log = logging.getLogger("fem_import")
 
 #: Nastran result files: eigenvectors in each grid's displacement system (CD), subcases
 NASTRAN_RESULTS = ("nastran-punch", "nastran-f06")
+#: Files holding several solutions, read with ``subcase=`` (Nastran subcases, ANSYS load steps)
+SUBCASE_FORMATS = NASTRAN_RESULTS + ("ansys-rst",)
 #: Number of leading bytes handed to the sniffing functions.
 SNIFF_BYTES = 4096
 #: What the built-in formats are recognised by (for messages).
@@ -42,7 +44,8 @@ HOW_RECOGNISED = ("a universal file starts with a '    -1' line and a dataset nu
                   "header card such as '$TITLE' or '$EIGENVECTOR'; a Nastran print file (.f06) by its spaced-letter "
                   "headings and page numbers; a Nastran bulk deck with executive or case control "
                   "(NASTRAN, ASSIGN, SOL, CEND, ...) or bulk entries (BEGIN BULK, PARAM, CORD2R, GRID, ...; a "
-                  ".bdf/.dat/.nas/.blk file with a GRID card in its first 4 kB).")
+                  ".bdf/.dat/.nas/.blk file with a GRID card in its first 4 kB); an ANSYS result file (.rst) by its "
+                  "binary standard header (file number 12).")
 
 
 @dataclass(frozen=True, eq=False)
@@ -119,7 +122,7 @@ def _load_builtins() -> None:
     global _BUILTINS_LOADED
     if not _BUILTINS_LOADED:
         _BUILTINS_LOADED = True
-        from . import uff, punch, nastran_bulk  # noqa: F401  (they register themselves, in this order)
+        from . import uff, punch, nastran_bulk, ansys_rst  # noqa: F401  (they register themselves, in this order)
 
 
 def register_format(name: str, *, patterns, sniff, reader, geometry=None, description: str = "",
@@ -486,10 +489,11 @@ def read_with_geometry(path, geometry=None, *, option: str = "--geometry", subca
     option : str
         How the geometry is asked for on the command line, for the message.
     subcase : int, optional
-        Nastran punch file only: the subcase to read. None (default): the
-        only one, or the lowest with a WARNING naming the others when the
-        file holds several (:func:`fem_import.punch.read_punch` with
-        ``subcase="lowest"``; :func:`read` itself refuses to guess).
+        Nastran punch and print files: the subcase to read; an ANSYS result
+        file: the load step. None (default): the only one, or the lowest
+        with a WARNING naming the others when the file holds several
+        (:func:`fem_import.punch.read_punch` with ``subcase="lowest"``;
+        :func:`read` itself refuses to guess).
     units : str, optional
         The unit system of a file that does not state its units (a Nastran
         punch and bulk deck, a UFF without dataset 164): a key of
@@ -515,10 +519,11 @@ def read_with_geometry(path, geometry=None, *, option: str = "--geometry", subca
     p = Path(os.fspath(path))
     info = detect_format(p)
     kwargs = {}
-    if info.name in NASTRAN_RESULTS:
+    if info.name in SUBCASE_FORMATS:
         kwargs["subcase"] = "lowest" if subcase is None else subcase
     elif subcase is not None:
-        raise UnknownFormatError(f"{p}: subcase={subcase!r} applies to Nastran punch and print files; this file is "
+        raise UnknownFormatError(f"{p}: subcase={subcase!r} applies to Nastran punch and print files and ANSYS "
+                                 f"result files (the load step); this file is "
                                  f"{info.name!r}", path=str(p), supported=tuple(_REGISTRY))
     if units is not None and units not in UNIT_SYSTEMS:
         raise ValueError(f"unknown FE unit system {units!r}; known: {', '.join(UNIT_SYSTEMS)}")
@@ -531,7 +536,8 @@ def read_with_geometry(path, geometry=None, *, option: str = "--geometry", subca
         if _units_stated(fe):
             raise FEReadError(p, f"the file states its units ({fe.units}), which the reader has converted to SI "
                                  f"already; the declared unit system {units!r} is for files that do not state them "
-                                 f"(a Nastran punch and bulk deck, a UFF without dataset 164): leave it out")
+                                 f"(a Nastran punch and bulk deck, a UFF without dataset 164, an ANSYS result without "
+                                 f"/UNITS whose materials do not tell): leave it out")
         return fe.in_si_units(units), f"{where}; units declared {units}, converted to SI"
 
     if geometry is not None:

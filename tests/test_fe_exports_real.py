@@ -220,7 +220,7 @@ def test_d6_an_fe_in_mm_without_units_is_named_not_the_points(tmp_path):
         check_point_offsets(fe, [ids[0]], [point], ["'contact_L'"], source="points.csv")
     text = str(err.value)
     assert "the FE coordinates look like mm" in text and "x 0.001 puts node 1001 0.03 m from the point" in text
-    assert "the file states no units: UFF without dataset 164, or a Nastran file" in text and "km" not in text
+    assert "the file states no units: UFF without dataset 164, a Nastran file" in text and "km" not in text
     # Nastran punch + bulk deck in mm: the same diagnosis
     modes = [(k + 1, (2 * np.pi * f) ** 2, ids, shapes[k]) for k, f in enumerate(freqs)]
     (tmp_path / "n.pch").write_text(fx.punch(modes))
@@ -425,8 +425,8 @@ def test_declared_units_are_refused_for_a_file_that_states_its_own(tmp_path):
     with pytest.raises(FEReadError, match=r"states its units .* the declared unit system 'mm-t-s' is for files that "
                                           r"do not state them"):
         read_with_geometry(path, units="mm-t-s")
-    with pytest.raises(ValueError, match="unknown FE unit system 'cm-g-s'; known: m-kg-s, mm-t-s"):
-        read_with_geometry(path, units="cm-g-s")
+    with pytest.raises(ValueError, match="unknown FE unit system 'km-kg-s'; known: m-kg-s, mm-t-s"):
+        read_with_geometry(path, units="km-kg-s")
 
 
 # ------------------------------------------------------------------------------------ D17: the Nastran print file
