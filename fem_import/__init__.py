@@ -1,7 +1,8 @@
 """fem_import — readers of finite-element modal exports.
 
 Role in the data flow (``shared/DESIGN.md``): reads the design office's FE
-export (UFF 2411/2412 with 55 or 2414, Nastran punch or print-file eigenvectors, an ANSYS modal .rst) through a format
+export (UFF 2411/2412 with 55 or 2414, Nastran punch or print-file
+eigenvectors, an ANSYS modal .rst, a CalculiX .frd) through a format
 registry into FE modes (nodes, elements, frequencies, mass-normalised shapes)
 and evaluates shapes at sensor points and directions. It is the first link:
 :mod:`ema` pairs against it and :mod:`receptance` builds the hybrid model from
@@ -61,7 +62,8 @@ from .registry import (
     register_format,
     unregister_format,
 )
-from . import uff as _uff, punch as _punch, f06 as _f06, nastran_bulk as _bulk, ansys_rst as _rst  # noqa: E402,F401
+from . import uff as _uff, punch as _punch, f06 as _f06, nastran_bulk as _bulk  # noqa: E402,F401  (built-in readers)
+from . import ansys_rst as _rst, calculix_frd as _frd  # noqa: E402,F401
 from .checks import (  # noqa: E402
     MassNormalisationError,
     RigidBodyMass,

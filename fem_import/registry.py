@@ -36,7 +36,7 @@ log = logging.getLogger("fem_import")
 #: Nastran result files: eigenvectors in each grid's displacement system (CD), subcases
 NASTRAN_RESULTS = ("nastran-punch", "nastran-f06")
 #: Files holding several solutions, read with ``subcase=`` (Nastran subcases, ANSYS load steps)
-SUBCASE_FORMATS = NASTRAN_RESULTS + ("ansys-rst",)
+SUBCASE_FORMATS = NASTRAN_RESULTS + ("ansys-rst", "calculix-frd")
 #: Number of leading bytes handed to the sniffing functions.
 SNIFF_BYTES = 4096
 #: What the built-in formats are recognised by (for messages).
@@ -45,7 +45,8 @@ HOW_RECOGNISED = ("a universal file starts with a '    -1' line and a dataset nu
                   "headings and page numbers; a Nastran bulk deck with executive or case control "
                   "(NASTRAN, ASSIGN, SOL, CEND, ...) or bulk entries (BEGIN BULK, PARAM, CORD2R, GRID, ...; a "
                   ".bdf/.dat/.nas/.blk file with a GRID card in its first 4 kB); an ANSYS result file (.rst) by its "
-                  "binary standard header (file number 12).")
+                  "binary standard header (file number 12); a CalculiX result file (.frd) by its '    1C' opening "
+                  "record.")
 
 
 @dataclass(frozen=True, eq=False)
@@ -122,7 +123,8 @@ def _load_builtins() -> None:
     global _BUILTINS_LOADED
     if not _BUILTINS_LOADED:
         _BUILTINS_LOADED = True
-        from . import uff, punch, nastran_bulk, ansys_rst  # noqa: F401  (they register themselves, in this order)
+        # they register themselves, in this order
+        from . import uff, punch, nastran_bulk, ansys_rst, calculix_frd  # noqa: F401
 
 
 def register_format(name: str, *, patterns, sniff, reader, geometry=None, description: str = "",
