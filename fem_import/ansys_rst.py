@@ -33,9 +33,13 @@ this module only turns what it returns into :class:`~fem_import.modes.FEModes`:
 
 from __future__ import annotations
 
+import json
 import logging
 import os
 import struct
+import subprocess
+import sys
+import tempfile
 
 import numpy as np
 
@@ -245,7 +249,7 @@ def _elements(path: str, result, have: set[int]) -> tuple[tuple[Element, ...], l
     return tuple(out), notes
 
 
-def read_ansys_rst(path: str, *, subcase: int | str | None = None) -> FEModes:
+def read_ansys_rst(path: str, *, subcase: int | str | None = None, isolated: bool = True) -> FEModes:
     """Read the modes of an ANSYS modal analysis from its binary result file (module docstring).
 
     Parameters
@@ -255,6 +259,11 @@ def read_ansys_rst(path: str, *, subcase: int | str | None = None) -> FEModes:
     subcase : int, "lowest" or None, optional
         The load step to read when the file holds several modal solutions: None requires one, ``"lowest"`` reads
         the lowest with a WARNING naming the others (what :func:`fem_import.read_with_geometry` passes).
+    isolated : bool, optional
+        Read in a child Python process (default): the library's C reader aborts or crashes the whole process on
+        some damaged records (a record-length word changed: ``std::bad_alloc``, a segmentation fault), which no
+        exception handler can catch; the child's death is then an :class:`FEReadError`. It costs about a second.
+        False reads in this process.
 
     Returns
     -------
@@ -267,9 +276,22 @@ def read_ansys_rst(path: str, *, subcase: int | str | None = None) -> FEModes:
     ------
     FEReadError
         Not a readable result file, a cyclic-symmetry or non-modal analysis, complex modes, several load steps
-        without ``subcase``, no nodal displacements, or shapes normalised to unity.
+        without ``subcase``, no nodal displacements, or shapes normalised to unity; a damaged file the library
+        cannot read, or on which it crashed.
     """
     path = str(path)
+    if isolated:
+        return _read_in_child(path, subcase)
+    try:
+        return _read(path, subcase)
+    except FEReadError:
+        raise
+    except Exception as exc:  # the library's parsers raise KeyError, ValueError, TypeError... on damaged records
+        raise FEReadError(path, f"a damaged ANSYS result file: the reader stopped with {type(exc).__name__}: "
+                                f"{exc}") from None
+
+
+def _read(path: str, subcase) -> FEModes:
     result = _open(path)
     header = result._resultheader
     kind = int(header.get("kan", -1))
@@ -313,6 +335,11 @@ def read_ansys_rst(path: str, *, subcase: int | str | None = None) -> FEModes:
         raise FEReadError(path, "mode shapes hold non-finite values")
     history = [f"read {len(freqs)} modes ({numbers[0]}..{numbers[-1]}, load step {step}) on {node_ids.size} nodes "
                f"from ANSYS result file {path} (MAPDL {header.get('verstring', '?')})"]
+    if node_ids.size < mesh_ids.size:
+        note = (f"{mesh_ids.size - node_ids.size} of the mesh's {mesh_ids.size} nodes have no displacements (an "
+                f"OUTRES limited to a component?) and are left out")
+        log.warning("%s: %s", path, note)
+        history.append(note)
     rest = [d for d in dof_names if d not in _TRANSLATIONS + _ROTATIONS]
     if rest:
         history.append(f"nodal DOFs {rest} left out")
@@ -347,6 +374,68 @@ def read_ansys_rst(path: str, *, subcase: int | str | None = None) -> FEModes:
     return FEModes(si.node_ids, si.xyz, si.elements, si.freqs_hz, si.shapes, si.modal_mass, source=path,
                    format="ansys-rst", units=f"SI (m, kg, s), converted from {system} ({how})", history=steps,
                    mode_numbers=numbers)
+
+
+def _read_in_child(path: str, subcase) -> FEModes:
+    """:func:`_read` in a child interpreter (``python -m fem_import._rst_child``); its log records re-logged here."""
+    _check_complete(path)
+    package_root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [package_root, os.environ.get("PYTHONPATH")])))
+    with tempfile.TemporaryDirectory(prefix="railmodal-rst-") as tmp:
+        out = os.path.join(tmp, "modes.npz")
+        cmd = [sys.executable, "-m", "fem_import._rst_child", path, out, json.dumps(subcase)]
+        try:
+            done = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=3600)
+        except subprocess.TimeoutExpired:
+            raise FEReadError(path, "the ANSYS result reader did not finish within an hour: a damaged file?") from None
+        if done.returncode != 0 or not os.path.exists(out):
+            how = (f"killed by signal {-done.returncode}" if done.returncode < 0 else f"exit status {done.returncode}")
+            tail = " ".join((done.stderr or "").strip().splitlines()[-2:])[:300]
+            raise FEReadError(path, f"the ANSYS result reader crashed on this file ({how}{': ' + tail if tail else ''}"
+                                    f"): a damaged .rst; copy it again or solve again")
+        with np.load(out, allow_pickle=False) as data:
+            reply = json.loads(str(data["reply"]))
+            for level, message in reply["log"]:
+                log.log(level, "%s", message)
+            if "error" in reply:
+                raise FEReadError(path, reply["error"], line=None)
+            offsets = data["element_offsets"]
+            nodes = data["element_nodes"]
+            elements = tuple(Element(int(e), int(d), tuple(int(n) for n in nodes[offsets[k]:offsets[k + 1]]))
+                             for k, (e, d) in enumerate(zip(data["element_ids"], data["element_types"])))
+            return FEModes(data["node_ids"], data["xyz"], elements, data["freqs_hz"], data["shapes"],
+                           data["modal_mass"], source=path, format="ansys-rst", units=reply["units"],
+                           history=tuple(reply["history"]), mode_numbers=data["mode_numbers"])
+
+
+def _child(path: str, out: str, subcase) -> None:
+    """The child's side of :func:`_read_in_child`: read, and write the modes (or the refusal) and the log."""
+    records: list[tuple[int, str]] = []
+
+    class Collect(logging.Handler):
+        def emit(self, record):
+            records.append((record.levelno, record.getMessage()))
+
+    log.addHandler(Collect(logging.INFO))
+    log.setLevel(logging.INFO)
+    log.propagate = False
+    arrays: dict[str, np.ndarray] = {}
+    try:
+        fe = read_ansys_rst(path, subcase=subcase, isolated=False)
+    except FEReadError as exc:
+        text = str(exc)
+        reply = {"error": text[len(path) + 2:] if text.startswith(path + ": ") else text}
+    else:
+        reply = {"units": fe.units, "history": list(fe.history)}
+        sizes = [len(e.nodes) for e in fe.elements]
+        arrays = dict(node_ids=fe.node_ids, xyz=fe.xyz, freqs_hz=fe.freqs_hz, shapes=fe.shapes,
+                      modal_mass=fe.modal_mass, mode_numbers=fe.mode_numbers,
+                      element_ids=np.array([e.element_id for e in fe.elements], np.int64),
+                      element_types=np.array([e.fe_descriptor for e in fe.elements], np.int64),
+                      element_offsets=np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
+                      element_nodes=np.array([n for e in fe.elements for n in e.nodes], np.int64))
+    reply["log"] = records
+    np.savez(out, reply=np.array(json.dumps(reply)), **arrays)
 
 
 def _code_names() -> dict[int, str]:

@@ -136,7 +136,7 @@ def test_rotated_nodes_give_the_same_global_shapes(fe, monkeypatch):
 
     monkeypatch.setattr(real, "nodal_solution", nodal)
     monkeypatch.setattr(reader, "read_binary", lambda path, **kw: real)
-    turned = fem_import.read(RST)
+    turned = fem_import.read(RST, isolated=False)
     np.testing.assert_allclose(turned.shapes, fe.shapes, atol=1e-12 * np.abs(fe.shapes).max())
     assert any("rotated node" in h for h in turned.history)
 
@@ -153,6 +153,38 @@ def test_a_truncated_file_is_refused_by_name_before_the_library_reads_it(tmp_pat
         fem_import.read(path)
 
 
+def test_a_file_that_crashes_the_library_is_refused_and_this_process_lives(tmp_path, fe):
+    """The length word of the nodal equivalence record (word 192) set to -5: the library's C reader aborts its
+    process (``std::bad_alloc``, signal 6); read in a child, that is an FEReadError naming the file and the signal.
+    The same read in this process would have killed the test run. The child's read of the intact file is the
+    in-process one, bit for bit, log lines included."""
+    data = bytearray(open(RST, "rb").read())
+    data[4 * 192:4 * 193] = np.int32(-5).tobytes()
+    path = tmp_path / "damaged.rst"
+    path.write_bytes(bytes(data))
+    with pytest.raises(fem_import.FEReadError, match=r"damaged\.rst: the ANSYS result reader crashed on this file "
+                                                     r"\(killed by signal \d+"):
+        fem_import.read(path)
+    here = fem_import.read(RST, isolated=False)
+    np.testing.assert_array_equal(fe.shapes, here.shapes)
+    np.testing.assert_array_equal(fe.xyz, here.xyz)
+    assert fe.elements == here.elements and fe.history == here.history and fe.units == here.units
+
+
+def test_a_damaged_record_is_refused_by_name(tmp_path):
+    """Errors the library's Python layers raise on a damaged record (the length word of the first mode's record,
+    word 81396, set to 2^30: a KeyError or "argument out of range", as the garbage it then reads falls) come out
+    as an FEReadError naming the file, in the child and here."""
+    data = bytearray(open(RST, "rb").read())
+    data[4 * 81396:4 * 81397] = np.int32(2 ** 30).tobytes()
+    path = tmp_path / "damaged.rst"
+    path.write_bytes(bytes(data))
+    for isolated in (True, False):
+        with pytest.raises(fem_import.FEReadError, match=r"damaged\.rst: a damaged ANSYS result file: the reader "
+                                                         r"stopped with \w+"):
+            fem_import.read(path, isolated=isolated)
+
+
 def test_unity_normalised_and_non_modal_files_are_refused(monkeypatch):
     """Shapes scaled to a largest component of 1 (``MODOPT`` ``Nrmkey = ON``) carry no modal mass; a static
     analysis has no modes. Both named."""
@@ -165,10 +197,10 @@ def test_unity_normalised_and_non_modal_files_are_refused(monkeypatch):
     monkeypatch.setattr(real, "nodal_solution", unity)
     monkeypatch.setattr(reader, "read_binary", lambda path, **kw: real)
     with pytest.raises(fem_import.FEReadError, match="normalised to unity"):
-        fem_import.read(RST)
+        fem_import.read(RST, isolated=False)
     monkeypatch.setitem(real._resultheader, "kan", 0)
     with pytest.raises(fem_import.FEReadError, match="static analysis"):
-        fem_import.read(RST)
+        fem_import.read(RST, isolated=False)
 
 
 @pytest.mark.parametrize("system", sorted(UNIT_SYSTEMS))
