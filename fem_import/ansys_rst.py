@@ -28,7 +28,10 @@ this module only turns what it returns into :class:`~fem_import.modes.FEModes`:
   (``--fe-units`` declares the system). A stated unit system whose materials are implausible in it is logged
   as a WARNING.
 * **Geometry**: node coordinates (global Cartesian) and the elements' corner nodes, as UFF descriptors by shape
-  (a 20-node brick is plotted as its 8-node brick; the mid-side nodes keep their shapes).
+  (a 20-node brick is plotted as its 8-node brick; the mid-side nodes keep their shapes), except where the ANSYS
+  element says more than its shape (:data:`ANSYS_ELEMENTS`): a MASS21 is a lumped mass (161), an MPC184 a rigid
+  element (122), a COMBIN14/39/40/214 a spring (136), a LINK180 a rod (11) -- not beams of the structure, which
+  the diagnosis would take for the axle. Surface, contact and meshing elements are left out.
 """
 
 from __future__ import annotations
@@ -47,7 +50,7 @@ from .errors import FEReadError
 from .modes import UNIT_SYSTEMS, Element, FEModes
 from .registry import register_format
 
-__all__ = ["read_ansys_rst", "sniff_ansys_rst", "nodal_to_global", "ANSYS_UNITS", "PLAUSIBLE_DENSITY",
+__all__ = ["read_ansys_rst", "sniff_ansys_rst", "nodal_to_global", "ANSYS_UNITS", "ANSYS_ELEMENTS", "PLAUSIBLE_DENSITY",
            "PLAUSIBLE_MODULUS"]
 
 log = logging.getLogger("fem_import")
@@ -66,6 +69,12 @@ _ANALYSES = {0: "static", 1: "buckling", 2: "modal", 3: "harmonic", 4: "transien
 #: VTK cell type -> UFF 2412 descriptor and the number of leading (corner) points it keeps
 _VTK_CELLS = {1: (161, 1), 3: (21, 2), 21: (21, 2), 5: (91, 3), 22: (91, 3), 9: (94, 4), 23: (94, 4),
               10: (111, 4), 24: (111, 4), 12: (115, 8), 25: (115, 8), 13: (112, 6), 26: (112, 6)}
+#: ANSYS element numbers whose role the cell shape does not tell -> UFF descriptor and nodes kept: MASS21, the
+#: rigid MPC184, the springs COMBIN14/39/40/214, the rod LINK180 (a line cell each, but no beam of the structure)
+ANSYS_ELEMENTS = {21: (161, 1), 184: (122, 2), 14: (136, 2), 39: (136, 2), 40: (136, 2), 214: (136, 2),
+                  180: (11, 2)}
+#: ANSYS surface, contact and meshing elements: no structure of the modes, left out (counted in the history)
+_NOT_STRUCTURE = frozenset({151, 152, 153, 154, 156, 169, 170, 171, 172, 173, 174, 175, 176, 177, 178, 200})
 _TRANSLATIONS = ("UX", "UY", "UZ")
 _ROTATIONS = ("ROTX", "ROTY", "ROTZ")
 #: a unity-normalised mode's largest component is 1 to the precision the file keeps
@@ -226,12 +235,17 @@ def _elements(path: str, result, have: set[int]) -> tuple[tuple[Element, ...], l
         return (), ["no elements in the file"]
     node_num = np.asarray(grid.point_data["ansys_node_num"], np.int64)
     elem_num = np.asarray(grid.cell_data["ansys_elem_num"], np.int64)
+    kinds = grid.cell_data.get("ansys_elem_type_num")
+    kinds = np.zeros(grid.n_cells, np.int64) if kinds is None else np.asarray(kinds, np.int64)
     offsets = np.asarray(grid.cell_offsets if hasattr(grid, "cell_offsets") else grid.offset, np.int64)
     conn = np.asarray(grid.cell_connectivity, np.int64)
-    out, unknown, missing = [], {}, 0
+    out, unknown, missing, surfaces = [], {}, 0, 0
     for k, cell_type in enumerate(np.asarray(grid.celltypes).tolist()):
         nodes = node_num[conn[offsets[k]:offsets[k + 1]]]
-        desc, corners = _VTK_CELLS.get(cell_type, (None, 0))
+        if int(kinds[k]) in _NOT_STRUCTURE:
+            surfaces += 1
+            continue
+        desc, corners = ANSYS_ELEMENTS.get(int(kinds[k])) or _VTK_CELLS.get(cell_type, (None, 0))
         if desc is None:
             unknown[cell_type] = unknown.get(cell_type, 0) + 1
             continue
@@ -244,6 +258,9 @@ def _elements(path: str, result, have: set[int]) -> tuple[tuple[Element, ...], l
         notes.append(f"elements of VTK cell types {sorted(unknown)} ({sum(unknown.values())}) not drawn")
     if missing:
         notes.append(f"{missing} element(s) on nodes without a solution not drawn")
+    if surfaces:
+        notes.append(f"{surfaces} surface, contact or meshing element(s) (SURF15x, CONTA17x, TARGE170, MESH200) "
+                     f"left out")
     for note in notes:
         log.info("%s: %s", path, note)
     return tuple(out), notes

@@ -230,3 +230,27 @@ def test_other_ansys_files_and_garbage_are_not_taken_for_results(tmp_path):
     path.write_bytes(b"not a result file" * 20)
     with pytest.raises(fem_import.UnknownFormatError):
         fem_import.read(path)
+
+
+def test_elements_whose_shape_hides_their_role_get_it_from_the_ansys_element_number():
+    """Line cells of an MPC184, a COMBIN14 and a BEAM188, a MASS21 point and a CONTA174 face: rigid (122), spring
+    (136), beam (21), mass (161), and the contact face left out (said) — a rigid link or a spring read as a beam
+    would be taken for a stretch of the axle."""
+    import pyvista as pv
+
+    line, vertex, quad = pv.CellType.LINE, pv.CellType.VERTEX, pv.CellType.QUAD
+    cells = np.array([2, 0, 1, 2, 1, 2, 2, 2, 3, 1, 3, 4, 0, 1, 2, 3])
+    grid = pv.UnstructuredGrid(cells, np.array([line, line, line, vertex, quad]), np.eye(4, 3) * [1, 2, 3])
+    grid.point_data["ansys_node_num"] = np.array([11, 12, 13, 14])
+    grid.cell_data["ansys_elem_num"] = np.array([1, 2, 3, 4, 5])
+    grid.cell_data["ansys_elem_type_num"] = np.array([184, 14, 188, 21, 174])
+
+    class Result:
+        pass
+
+    result = Result()
+    result.grid = grid
+    elements, notes = ansys_rst._elements("x.rst", result, {11, 12, 13, 14})
+    assert [(e.element_id, e.fe_descriptor, e.nodes) for e in elements] == [
+        (1, 122, (11, 12)), (2, 136, (12, 13)), (3, 21, (13, 14)), (4, 161, (14,))]
+    assert any("contact" in n and n.startswith("1 ") for n in notes)
