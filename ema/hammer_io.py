@@ -81,6 +81,7 @@ __all__ = [
     "HammerDataError",
     "UFFReadError",
     "MDFReadError",
+    "TDMSReadError",
     "CSVReadError",
     "UnknownFormatError",
     "FunctionTypeError",
@@ -109,6 +110,10 @@ class UFFReadError(HammerDataError):
 
 class MDFReadError(HammerDataError):
     """An MDF file asammdf cannot read (truncated, corrupt), or a channel block in it."""
+
+
+class TDMSReadError(HammerDataError):
+    """A TDMS file npTDMS cannot read, or reads only in part (cut short), or a channel without a time base."""
 
 
 class CSVReadError(HammerDataError):
@@ -1234,12 +1239,28 @@ def _read_mdf(path: Path, table: pd.DataFrame) -> HammerTest:
     return read_hammer_mdf(path, table)
 
 
+def _sniff_tdms(path: Path) -> bool:
+    from .tdms_file import sniff_tdms
+
+    with open(path, "rb") as fh:
+        return sniff_tdms(fh.read(4))
+
+
+def _read_tdms(path: Path, table: pd.DataFrame) -> HammerTest:
+    from .hammer_tdms import read_hammer_tdms
+
+    return read_hammer_tdms(path, table)
+
+
 #: Registered hammer-test readers: format name -> (sniffer, reader, description).
 HAMMER_FORMATS: dict[str, tuple[Callable[[Path], bool], Callable[[Path, pd.DataFrame], HammerTest], str]] = {
     "uff58": (_sniff_uff, _read_uff58, "universal file, dataset 58/58b time histories (function type 1)"),
     "mdf": (_sniff_mdf, _read_mdf,
             "ASAM MDF 3/4 of a data logger (asammdf): continuous or one record per trigger, "
             "channels found by the table's names"),
+    "tdms": (_sniff_tdms, _read_tdms,
+             "NI TDMS (LabVIEW, FlexLogger, DAQmx logging; npTDMS): continuous or one group per trigger, channels "
+             "found by the table's names"),
     "csv": (_sniff_csv, _read_csv,
             "wide CSV table of a DAQ export: a time column, then one column per channel named as in the table"),
 }

@@ -384,11 +384,11 @@ def build_parser() -> argparse.ArgumentParser:
     ident = lab_sub.add_parser("identify", help="identify modes from a hammer-test file or exported FRFs")
     source = ident.add_mutually_exclusive_group(required=True)
     source.add_argument("--hammer", action="append",
-                        type=existing_file("--hammer", "hammer-test (UFF58, MDF or CSV)"),
+                        type=existing_file("--hammer", "hammer-test (UFF58, MDF, TDMS or CSV)"),
                         help="UFF58 time histories (one dataset per channel per hit), a DAQ's wide CSV export "
                              "(time, then one column per channel named as in --channels; a time column restarting, or "
                              "jumping between records of one length, is one hit per trigger), or a data logger's MDF "
-                             "file "
+                             "or NI TDMS file "
                              "(channels named as in --channels; one record per trigger, or one continuous record "
                              "cut into hits at the impacts); repeat it for a setup whose "
                              "hits are stored in several files (one hit per file): they are read as one test, the "

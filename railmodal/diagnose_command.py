@@ -126,10 +126,10 @@ def add_diagnose_parser(lab_subparsers) -> argparse.ArgumentParser:
                     "diagnosis.json, a self-contained report.html (figures also as PNG in figures/) and the "
                     "diagnosed model hybrid_model.npz into --out.")
     d.add_argument("--hammer", action=_SetupData, nargs="+",
-                   type=existing_file("--hammer", "hammer-test (UFF58, MDF or CSV)"),
+                   type=existing_file("--hammer", "hammer-test (UFF58, MDF, TDMS or CSV)"),
                    metavar="FILE",
-                   help="UFF58 hammer-test time histories (or a data logger's MDF recording, or a DAQ's wide CSV "
-                        "export) of one setup (repeat "
+                   help="UFF58 hammer-test time histories (or a data logger's MDF or NI TDMS recording, or a DAQ's "
+                        "wide CSV export) of one setup (repeat "
                         "per setup, each with its --channels); "
                         "several files after one --hammer are the hits of one setup stored one (or a few) per file")
     d.add_argument("--frf", action=_SetupData, type=existing_file("--frf", "FRF (UFF58)"),

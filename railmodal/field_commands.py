@@ -127,8 +127,9 @@ def add_field_commands(sub) -> None:
     fsub = field.add_subparsers(dest="field_command", required=True)
     est = fsub.add_parser("estimate", help="one run -> rail roughness per rail, EN 13231-3 indexes, EN 15610 spectra, "
                                            "report")
-    est.add_argument("--run", required=True, type=existing_file("--run", "run (MDF 4, Parquet or CSV)"),
-                     help="run file (ASAM MDF 4, a Parquet/CSV long table channel, t_s, value, unit, or a wide CSV: "
+    est.add_argument("--run", required=True, type=existing_file("--run", "run (MDF 4, TDMS, Parquet or CSV)"),
+                     help="run file (ASAM MDF 4, NI TDMS, a Parquet/CSV long table channel, t_s, value, unit, or a "
+                          "wide CSV: "
                           "a time column, then one column per channel 'name [unit]')")
     est.add_argument("--sensors", required=True, type=existing_file("--sensors", "sensor table"),
                      help="sensor table CSV: name, quantity, unit, wheelset, side, direction, x, y, z, sensitivity")

@@ -92,7 +92,7 @@ def add_field_diagnose_command(sub) -> None:
     p = fsub.add_parser("diagnose", help="calibration site: compare with a trolley reference, find and fit the "
                                          "missing field effects, save the calibrated model")
     p.add_argument("--runs", required=True, nargs="+", type=existing_file("--runs", "run file"),
-                   help="run files (MDF 4, Parquet or CSV) over the site and the validation stretches")
+                   help="run files (MDF 4, TDMS, Parquet or CSV) over the site and the validation stretches")
     p.add_argument("--reference", required=True, nargs="+", type=existing_file("--reference", "trolley file"),
                    help="trolley files <YYYY-MM-DD>.csv (chainage_m, rail, roughness_um), one per survey day")
     p.add_argument("--site", required=True, nargs=2, metavar=("FROM", "TO"),

@@ -333,8 +333,8 @@ def add_model_commands(sub) -> None:
     b.add_argument("--robustness-models", type=bounded_int("--robustness-models", 2, MAX_ROBUSTNESS_MODELS),
                    default=50, help=f"perturbed models of the robustness study, 2 to {MAX_ROBUSTNESS_MODELS} "
                                     f"(thesis §4.2: 50)")
-    b.add_argument("--hammer", action="append", type=existing_file("--hammer", "hammer-test (UFF58, MDF or CSV)"),
-                   help="optional: hammer-test file (UFF58, MDF or CSV) to validate the model against")
+    b.add_argument("--hammer", action="append", type=existing_file("--hammer", "hammer-test (UFF58, MDF, TDMS or CSV)"),
+                   help="optional: hammer-test file (UFF58, MDF, TDMS or CSV) to validate the model against")
     b.add_argument("--channels", action="append", type=existing_file("--channels", "channel table"),
                    help="channel table of each --hammer file")
     b.add_argument("--out", required=True, type=output_folder("--out"))

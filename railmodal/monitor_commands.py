@@ -274,7 +274,7 @@ def add_monitor_commands(sub) -> None:
     """Add ``ingest``, ``monitor``, ``compare-reference`` and ``reprocess`` to the ``railmodal field`` group."""
     fsub = _field_subparsers(sub)
     ing = fsub.add_parser("ingest", help="runs -> monitoring store (estimate, align, average; Dask)")
-    ing.add_argument("runs", nargs="+", help="run files (MDF 4, Parquet, CSV) or folders of MDF 4 files")
+    ing.add_argument("runs", nargs="+", help="run files (MDF 4, TDMS, Parquet, CSV) or folders of MDF 4 / TDMS files")
     _common_processing(ing)
     ing.set_defaults(func=_cmd_ingest)
 

@@ -32,11 +32,40 @@ HEADER = {"run_id": "r7", "date": "2026-02-03", "direction": "forward", "train":
           "line": "M1", "weather": "dry"}
 
 
+def write_tdms(path, channels: dict, header: dict) -> None:
+    """A TDMS file as an NI train DAQ writes the field contract: one group per time base, evenly sampled ones as
+    waveforms (``wf_increment``, ``wf_start_offset``, one ``wf_start_time``), the events beside a ``Time`` channel;
+    the header as root properties."""
+    from nptdms import ChannelObject, RootObject, TdmsWriter
+
+    start = np.datetime64("2026-02-03T07:30:00", "us")
+    groups: dict = {}
+    for name, (t, v, unit) in channels.items():
+        key = (t.size, float(t[0]) if t.size else 0.0, float(t[1] - t[0]) if t.size > 1 else 0.0)
+        groups.setdefault(key, []).append((name, t, v, unit))
+    objects = [RootObject(properties=dict(header))]
+    for k, members in enumerate(groups.values()):
+        t = members[0][1]
+        dt = np.diff(t)
+        wave = t.size > 1 and np.allclose(dt, dt[0], rtol=1e-12, atol=0)
+        if not wave:
+            objects.append(ChannelObject(f"group {k}", "Time", np.asarray(t, float), properties={"unit_string": "s"}))
+        for name, _, v, unit in members:
+            props = {"unit_string": unit}
+            if wave:
+                props.update(wf_increment=float(dt[0]), wf_start_offset=float(t[0]), wf_start_time=start)
+            objects.append(ChannelObject(f"group {k}", name, np.asarray(v, float), properties=props))
+    with TdmsWriter(str(path)) as writer:
+        writer.write_segment(objects)
+
+
 def _write(folder, stem, ch, fmt):
     """The channels as a run file of format ``fmt`` in ``folder``."""
-    p = folder / f"{stem}.{dict(mdf4='mf4', parquet='parquet', csv='csv')[fmt.split('-')[0]]}"
+    p = folder / f"{stem}.{dict(mdf4='mf4', parquet='parquet', csv='csv', tdms='tdms')[fmt.split('-')[0]]}"
     if fmt == "mdf4":
         write_mdf4(p, ch, HEADER)
+    elif fmt == "tdms":
+        write_tdms(p, ch, HEADER)
     elif fmt == "csv-wide":
         from estimator.io.wide import write_wide_csv
 
@@ -78,7 +107,7 @@ def test_sensor_table_errors_name_row_column_and_value(tmp_path, edit, message):
         read_sensors(p)
 
 
-@pytest.mark.parametrize("fmt", ["mdf4", "parquet", "csv", "csv-wide"])
+@pytest.mark.parametrize("fmt", ["mdf4", "tdms", "parquet", "csv", "csv-wide"])
 def test_the_formats_give_the_same_run(tmp_path, table, fmt):
     ch = _channels()
     run = read_run(_write(tmp_path, "run", ch, fmt), table)
@@ -134,6 +163,17 @@ def test_a_truncated_mdf4_is_a_named_error(tmp_path, table):
     cut = tmp_path / "cut.mf4"
     cut.write_bytes(data[: len(data) // 3])
     with pytest.raises(RunFileError, match="cut.mf4"):
+        read_run(cut, table)
+
+
+def test_a_truncated_tdms_is_a_named_error_not_a_shorter_run(tmp_path, table):
+    """npTDMS reads a cut file as far as it goes and only warns: the run would silently end early."""
+    p = tmp_path / "run.tdms"
+    write_tdms(p, _channels(n=20000), HEADER)
+    data = p.read_bytes()
+    cut = tmp_path / "cut.tdms"
+    cut.write_bytes(data[: 2 * len(data) // 3])
+    with pytest.raises(RunFileError, match=r"cut\.tdms: the TDMS file is cut short"):
         read_run(cut, table)
 
 

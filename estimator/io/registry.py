@@ -3,7 +3,8 @@
 A reader is a function ``read_raw(path) -> RawRecording`` registered under a
 format name with a sniffer ``sniff(path, head_bytes) -> bool`` (ObsPy's
 ``read()`` plugin pattern). The built-in formats are MDF 4 (``mdf4``, via
-asammdf), Parquet (``parquet``), CSV as a long table (``csv``) and CSV as a
+asammdf), NI TDMS (``tdms``, via npTDMS, :mod:`estimator.io.tdms`), Parquet
+(``parquet``), CSV as a long table (``csv``) and CSV as a
 wide table, one column per channel (``csv-wide``, :mod:`estimator.io.wide`);
 :func:`register_format` adds one. An unknown format raises :class:`~estimator.errors.UnknownFormatError`
 listing the supported ones.
@@ -75,9 +76,11 @@ def formats() -> dict[str, FormatPlugin]:
 def _builtin() -> None:
     if _FORMATS:
         return
-    from estimator.io import mdf4, tabular, wide
+    from estimator.io import mdf4, tabular, tdms, wide
 
     register_format(FormatPlugin("mdf4", (".mf4", ".mdf"), mdf4.sniff, mdf4.read_raw, "ASAM MDF 4 (asammdf)"))
+    register_format(FormatPlugin("tdms", (".tdms",), tdms.sniff, tdms.read_raw,
+                                 "NI TDMS (npTDMS): waveforms per group, header in the root properties"))
     register_format(FormatPlugin("parquet", (".parquet", ".pq"), tabular.sniff_parquet, tabular.read_parquet,
                                  "long table channel, t_s, value, unit; header in the schema metadata"))
     register_format(FormatPlugin("csv", (".csv", ".txt"), tabular.sniff_csv, tabular.read_csv,

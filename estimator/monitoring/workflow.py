@@ -435,11 +435,11 @@ def process_run(path, spec: IngestSpec, reference: DayReference | None = None, *
 
 # --------------------------------------------------------------------------- the batch
 #: file patterns a folder given as a run is searched for (recursively)
-RUN_PATTERNS = ("*.mf4", "*.MF4", "*.mdf", "*.MDF")
+RUN_PATTERNS = ("*.mf4", "*.MF4", "*.mdf", "*.MDF", "*.tdms", "*.TDMS")
 
 
 def collect_runs(items: Sequence, limit: int = MAX_RUNS_PER_BATCH) -> list[str]:
-    """Run files from files and folders (a folder is searched recursively for MDF 4 files), sorted, unique.
+    """Run files from files and folders (a folder is searched recursively for MDF 4 and TDMS files), sorted, unique.
 
     Raises
     ------
@@ -452,11 +452,11 @@ def collect_runs(items: Sequence, limit: int = MAX_RUNS_PER_BATCH) -> list[str]:
         if p.is_dir():
             found = sorted({str(f) for pat in RUN_PATTERNS for f in p.rglob(pat) if f.is_file()})
             if not found:
-                raise MonitoringError(f"folder {p} holds no MDF 4 run file ({', '.join(RUN_PATTERNS)}); give Parquet "
-                                      "or CSV runs as files")
+                raise MonitoringError(f"folder {p} holds no MDF 4 or TDMS run file ({', '.join(RUN_PATTERNS)}); give "
+                                      "Parquet or CSV runs as files")
             out += found
-            # a folder also holds store files, trolley records and exports, so only its MDF 4 files are runs; say
-            # which tables were passed over, in case they were runs
+            # a folder also holds store files, trolley records and exports, so only its MDF 4 / TDMS files are runs;
+            # say which tables were passed over, in case they were runs
             other = sorted(str(f.relative_to(p)) for pat in ("*.parquet", "*.csv") for f in p.rglob(pat)
                            if f.is_file())
             if other:
