@@ -49,6 +49,7 @@ import numpy as np
 from .errors import FEReadError
 from .modes import UNIT_SYSTEMS, Element, FEModes
 from .registry import register_format
+from .solutions import choose_step
 
 __all__ = ["read_ansys_rst", "sniff_ansys_rst", "nodal_to_global", "ANSYS_UNITS", "ANSYS_ELEMENTS", "PLAUSIBLE_DENSITY",
            "PLAUSIBLE_MODULUS"]
@@ -167,23 +168,6 @@ def _open(path: str):
         raise FEReadError(path, f"an ANSYS {type(result).__name__} file, not a result file (.rst) of a modal "
                                 f"analysis")
     return result
-
-
-def _loadstep(path: str, table: np.ndarray, subcase) -> tuple[int, np.ndarray]:
-    steps = sorted(set(table[:, 0].tolist()))
-    if subcase is None:
-        if len(steps) > 1:
-            raise FEReadError(path, f"{len(steps)} modal load steps ({steps}); choose one (subcase=)")
-        step = steps[0]
-    elif subcase == "lowest":
-        step = steps[0]
-        if len(steps) > 1:
-            log.warning("%s: %d modal load steps %s; reading the lowest, %d", path, len(steps), steps, step)
-    else:
-        step = int(subcase)
-        if step not in steps:
-            raise FEReadError(path, f"no load step {step}; the file has {steps}")
-    return step, np.flatnonzero(table[:, 0] == step)
 
 
 def _materials(result) -> dict[int, tuple[float, float]]:
@@ -322,9 +306,11 @@ def _read(path: str, subcase) -> FEModes:
         raise FEReadError(path, "a thermal result file; the modes come from a structural modal analysis")
     if result.nsets == 0:
         raise FEReadError(path, "no result sets (the modal solution did not finish?)")
-    step, sets = _loadstep(path, np.asarray(header["ls_table"]).reshape(-1, 3), subcase)
+    table = np.asarray(header["ls_table"]).reshape(-1, 3)
+    step = choose_step(path, table[:, 0], subcase, "modal load step")
+    sets = np.flatnonzero(table[:, 0] == step)
     freqs = np.asarray(result.time_values, float)[sets]
-    numbers = np.asarray(header["ls_table"]).reshape(-1, 3)[sets, 1].astype(np.int64)
+    numbers = table[sets, 1].astype(np.int64)
 
     mesh = result.mesh
     mesh_ids = np.asarray(mesh.nnum, np.int64)

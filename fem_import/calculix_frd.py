@@ -41,6 +41,7 @@ import numpy as np
 from .errors import FEReadError
 from .modes import Element, FEModes
 from .registry import register_format
+from .solutions import choose_step
 
 __all__ = ["read_frd", "sniff_frd", "CGX_ELEMENTS"]
 
@@ -312,20 +313,8 @@ def read_frd(path: str, *, subcase: int | str | None = None) -> FEModes:
     if bare:
         raise FEReadError(path, f"mode(s) {bare[:10]} have no displacement block (a file cut short, or a request "
                                 f"without U)", line=modes[0].line + 1)
-    steps = sorted({m.step for m in with_disp})
-    if len(steps) > 1:
-        if subcase is None:
-            raise FEReadError(path, f"{len(steps)} frequency steps ({steps}); choose one (subcase=)")
-        chosen = steps[0] if subcase == "lowest" else int(subcase)
-        if chosen not in steps:
-            raise FEReadError(path, f"no frequency step {chosen}; the file has {steps}")
-        if subcase == "lowest":
-            log.warning("%s: %d frequency steps %s; reading the lowest, %d", path, len(steps), steps, chosen)
-        with_disp = [m for m in with_disp if m.step == chosen]
-    else:
-        chosen = steps[0]
-        if subcase not in (None, "lowest") and int(subcase) != chosen:
-            raise FEReadError(path, f"no frequency step {subcase}; the file has {steps}")
+    chosen = choose_step(path, [m.step for m in with_disp], subcase, "frequency step")
+    with_disp = [m for m in with_disp if m.step == chosen]
     row = {n: k for k, n in enumerate(node_ids.tolist())}
     shapes = np.zeros((len(with_disp), node_ids.size, 3))
     for k, m in enumerate(with_disp):

@@ -172,17 +172,17 @@ def test_a_file_that_crashes_the_library_is_refused_and_this_process_lives(tmp_p
 
 
 def test_a_damaged_record_is_refused_by_name(tmp_path):
-    """Errors the library's Python layers raise on a damaged record (the length word of the first mode's record,
-    word 81396, set to 2^30: a KeyError or "argument out of range", as the garbage it then reads falls) come out
-    as an FEReadError naming the file, in the child and here."""
+    """The length word of the first mode's record (word 81396) set to 2^30: the library then reads past the
+    record, and stops somewhere else from run to run (a KeyError, "argument out of range", a mode without DOFs);
+    each way is an FEReadError naming the file, never another exception. (Only in a child: what it reads there is
+    not the file's, and could as well crash this process.)"""
     data = bytearray(open(RST, "rb").read())
     data[4 * 81396:4 * 81397] = np.int32(2 ** 30).tobytes()
     path = tmp_path / "damaged.rst"
     path.write_bytes(bytes(data))
-    for isolated in (True, False):
-        with pytest.raises(fem_import.FEReadError, match=r"damaged\.rst: a damaged ANSYS result file: the reader "
-                                                         r"stopped with \w+"):
-            fem_import.read(path, isolated=isolated)
+    for _ in range(3):
+        with pytest.raises(fem_import.FEReadError, match=r"damaged\.rst: "):
+            fem_import.read(path)
 
 
 def test_unity_normalised_and_non_modal_files_are_refused(monkeypatch):
