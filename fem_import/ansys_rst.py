@@ -374,9 +374,9 @@ def _read(path: str, subcase) -> FEModes:
         return fe
     si = fe.in_si_units(system)
     steps = si.history[:-1] + (si.history[-1].replace("declared in", "file in", 1),) if si is not fe else si.history
+    units = f"SI (m, kg, s) ({how})" if si is fe else f"SI (m, kg, s), converted from {system} ({how})"
     return FEModes(si.node_ids, si.xyz, si.elements, si.freqs_hz, si.shapes, si.modal_mass, source=path,
-                   format="ansys-rst", units=f"SI (m, kg, s), converted from {system} ({how})", history=steps,
-                   mode_numbers=numbers)
+                   format="ansys-rst", units=units, history=steps, mode_numbers=numbers)
 
 
 def _read_in_child(path: str, subcase) -> FEModes:
