@@ -919,3 +919,28 @@ def test_a_run_estimated_from_a_wide_csv_equals_its_mdf4(tmp_path):
     pd.testing.assert_frame_equal(a.indexes, b.indexes, check_exact=True)
     for k in a.profiles:
         np.testing.assert_array_equal(a.profiles[k].rail, b.profiles[k].rail)
+
+
+def test_a_run_estimated_from_tdms_equals_its_mdf4(tmp_path):
+    """The synthetic run written as MDF 4 and converted to TDMS as an NI DAQ writes it (waveforms per time base,
+    the balise events beside a Time channel, the header as root properties): the same channels, stamps and header,
+    and the same estimate, to the bit."""
+    from estimator import EstimatorConfig, estimate_run, prepare
+    from estimator.io.registry import read_raw
+    from test_estimator_synthetic import control_model, make_run, sensor_table
+
+    sr = make_run(tmp_path, duration_s=30.0)
+    raw, _ = read_raw(sr.path)
+    path = tmp_path / "run.tdms"
+    write_tdms(path, {k: (c.t, c.values, c.unit) for k, c in raw.channels.items()}, dict(raw.header))
+    again, fmt = read_raw(path)
+    assert fmt == "tdms" and dict(again.header) == dict(raw.header) and set(again.channels) == set(raw.channels)
+    for k, c in raw.channels.items():
+        np.testing.assert_array_equal(again.channels[k].t, c.t)
+        np.testing.assert_array_equal(again.channels[k].values, c.values)
+    fm = prepare(control_model(), sensor_table(), config=EstimatorConfig(wheelbase_m=2.2))
+    a, b = estimate_run(sr.path, fm), estimate_run(path, fm)
+    assert b.source.endswith("run.tdms") and set(a.profiles) == set(b.profiles)
+    pd.testing.assert_frame_equal(a.indexes, b.indexes, check_exact=True)
+    for k in a.profiles:
+        np.testing.assert_array_equal(a.profiles[k].rail, b.profiles[k].rail)
