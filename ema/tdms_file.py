@@ -15,7 +15,7 @@ gives every numeric channel with its time stamps and unit (``unit_string``, NI's
 
 npTDMS reads a file cut short as far as it goes and only logs a WARNING (``Last segment of file has less data
 than expected``); :func:`open_tdms` turns that into a refusal naming the file, so a half record is never read as
-a whole one.
+a whole one (and npTDMS's own lines, which say it "will attempt to read to the end", do not reach the terminal).
 """
 
 from __future__ import annotations
@@ -55,8 +55,14 @@ def open_tdms(path: Path, error: type[Exception], what: str = "TDMS file"):
     from nptdms import TdmsFile
 
     collect = _Collect()
-    logger = logging.getLogger("nptdms")
-    logger.addHandler(collect)
+    # npTDMS gives each of its loggers a stderr handler: while it reads, its words go to this refusal only
+    loggers = [logging.getLogger(n) for n in list(logging.root.manager.loggerDict) if n.startswith("nptdms.")]
+    saved = [(lg, lg.handlers[:], lg.propagate) for lg in loggers]
+    top = logging.getLogger("nptdms")
+    top_saved = (top.handlers[:], top.propagate)
+    for lg in loggers:
+        lg.handlers, lg.propagate = [], True
+    top.handlers, top.propagate = [collect], False
     try:
         try:
             tdms = TdmsFile.read(str(path))
@@ -64,10 +70,13 @@ def open_tdms(path: Path, error: type[Exception], what: str = "TDMS file"):
             raise error(f"{path}: not a readable {what} ({type(exc).__name__}: {exc}); the file may be truncated "
                         f"or corrupt") from None
     finally:
-        logger.removeHandler(collect)
+        for lg, handlers, propagate in saved:
+            lg.handlers, lg.propagate = handlers, propagate
+        top.handlers, top.propagate = top_saved
     cut = [m for m in collect.messages if any(c in m.lower() for c in _CUT)]
     if cut:
-        raise error(f"{path}: the {what} is cut short ({cut[0]}); copy it again")
+        raise error(f"{path}: the {what} is cut short: its last segment holds less data than the segment's lead-in "
+                    f"says; copy it again")
     if not any(True for g in tdms.groups() for _ in g.channels()):
         raise error(f"{path}: the {what} holds no channel; the file may be truncated")
     return tdms
