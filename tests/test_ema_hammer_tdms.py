@@ -97,7 +97,7 @@ def test_a_triggered_tdms_file_is_one_hit_per_group_in_time_order(tmp_path):
     np.testing.assert_array_equal(again.responses, test.responses)
 
 
-def test_bad_tdms_files_are_refused_by_file_channel_and_hit(tmp_path):
+def test_bad_tdms_files_are_refused_by_file_channel_and_hit(tmp_path, capfd):
     rec = continuous(rebound_after=None)
     csv = tmp_path / "channels.csv"
     table().to_csv(csv, index=False)
@@ -106,6 +106,7 @@ def test_bad_tdms_files_are_refused_by_file_channel_and_hit(tmp_path):
     (tmp_path / "cut.tdms").write_bytes(whole[:len(whole) - 1000])
     with pytest.raises(ema.TDMSReadError, match=r"cut\.tdms: the TDMS file is cut short"):
         ema.read_hammer(tmp_path / "cut.tdms", csv)
+    assert "will attempt" not in capfd.readouterr().err  # npTDMS's own lines stay off the terminal
     (tmp_path / "head.tdms").write_bytes(whole[:20])
     with pytest.raises(ema.TDMSReadError, match=r"head\.tdms: the TDMS file holds no channel"):
         ema.read_hammer(tmp_path / "head.tdms", csv)
