@@ -239,7 +239,8 @@ def check_fe_for_model(fe: FEModes, *, total_mass: float | None = None, mass_mat
             f"none below {RIGID_BELOW_HZ:g} Hz, and {rigid_body_modes(fe).reason}): the model of a free wheelset "
             f"needs its six rigid-body modes (its mass and inertia carry the receptance below the first flexible "
             f"mode, and check the shapes' normalisation); export the modes from 0 Hz (e.g. Nastran EIGRL with V1 "
-            f"blank, Abaqus *FREQUENCY without a lower bound)")
+            f"blank, Abaqus or CalculiX *FREQUENCY without a lower bound, ANSYS MODOPT with FREQB = 0, and no "
+            f"support in the modal step)")
     rb = check_mass_normalisation(fe, total_mass=total_mass, mass_matrix=mass_matrix)
     if rb is None or total_mass is not None or expect != "wheelset":
         return rb

@@ -169,3 +169,17 @@ def test_other_files_are_not_taken_for_results():
     assert sniff_frd(b"    -1\n  2411\n") is False
     assert sniff_frd(b"$TITLE   = bar\n") is False
     assert sniff_frd(b"") is False
+
+
+def test_a_clamped_step_is_refused_as_a_wheelset_model_with_the_calculix_advice(files):
+    """The clamped bar's modes (no rigid-body mode) cannot make a free wheelset's model: refused, saying how to
+    export from 0 Hz in CalculiX's terms too; the free step's six rigid-body modes pass the same check."""
+    from fem_import.checks import MassNormalisationError
+    from receptance.hybrid import check_fe_for_model
+
+    clamped = fem_import.read(files["bar_two_steps"], subcase=2)
+    with pytest.raises(MassNormalisationError, match=r"holds no rigid-body modes .*CalculiX \*FREQUENCY without a "
+                                                     r"lower bound"):
+        check_fe_for_model(clamped, total_mass=MASS)
+    free = fem_import.read(files["bar_two_steps"], subcase=1)
+    assert check_fe_for_model(free, total_mass=MASS).mass == pytest.approx(MASS, rel=1e-5)
