@@ -16,7 +16,8 @@ frequency step writes:
   (frequency) and whose value is the frequency [cycles/time]; its ``DISP`` block gives ``D1..D3`` per node in fixed
   ``E12.5`` columns (values run together: ``1.05484E+00-3.08556E-01``). CalculiX normalises the eigenvectors to
   unit generalized mass (``1PGM 1.0``); another value is divided out, ``phi / sqrt(m)``. A negative eigenvalue
-  (a rigid-body mode's round-off) is written as frequency 0, and so read.
+  (a rigid-body mode's round-off) is written as frequency 0, and so read. A step's modes are numbered 1, 2, ...;
+  a gap, or a data record outside any block (its header lost), is a damaged file and refused.
 
 A ``.frd`` keeps six significant digits per value and states no units: SI is assumed unless declared
 (``--fe-units``), as for a Nastran punch. Shells and beams, which CalculiX expands to solids, give translations
@@ -185,6 +186,8 @@ def _result_block(src: _Lines, header: str, at: int, width: int) -> tuple[str, n
         comps.append(lines[src.i][5:13].strip())
     stored = [c for c in comps if c != "ALL"] or [f"C{k + 1}" for k in range(ncomp)]
     n_val = len(stored)
+    if n_val == 0:
+        raise src.fail(f"result block {name!r} has no components", at)
     ids, vals = [], []
     while True:
         src.i += 1
@@ -211,6 +214,15 @@ def _result_block(src: _Lines, header: str, at: int, width: int) -> tuple[str, n
     return name, np.asarray(ids, np.int64), np.asarray(vals, float).reshape(-1, n_val)
 
 
+def _parameter(src: _Lines, text: str, start: int, kind, name: str, index: int = 0):
+    """Field ``index`` of a ``1P`` parameter record (``1PSTEP``, ``1PMODE``, ``1PGM``, ``1PHID``) as ``kind``."""
+    fields = text[start:].split()
+    try:
+        return kind(fields[index])
+    except (IndexError, ValueError):
+        raise src.fail(f"{name} record {text.strip()!r} lacks its value {index + 1} (a damaged record?)") from None
+
+
 def _parse(path: str, lines: list[str]):
     src = _Lines(path, lines)
     node_ids = xyz = None
@@ -233,30 +245,36 @@ def _parse(path: str, lines: list[str]):
         elif head == "    3C ":
             elements = _elements(src, text, src.i)
         elif text.startswith("    1PSTEP"):
-            fields = text[10:].split()
-            step = int(fields[2]) if len(fields) >= 3 else None
+            step = _parameter(src, text, 10, int, "1PSTEP", index=2)
             number, mass, harmonic = None, 1.0, -1
         elif text.startswith("    1PMODE"):
-            number = int(text[10:].split()[0])
+            number = _parameter(src, text, 10, int, "1PMODE")
         elif text.startswith("    1PGM"):
-            mass = float(text[8:].split()[0])
+            mass = _parameter(src, text, 8, float, "1PGM")
         elif text.startswith("    1PHID"):
-            harmonic = int(text[9:].split()[0])
+            harmonic = _parameter(src, text, 9, int, "1PHID")
         elif text.startswith("  100C"):
             try:
                 value = float(text[12:24])
                 kind = int(text[56:58])
                 numstep = int(text[58:63])
-                width = 10 if int(text[73:75] or 1) == 1 else 5
+                fmt = int(text[73:75] or 1)
             except ValueError:
                 raise src.fail(f"result header {text.strip()!r} is not a 100C record of the CGX format") from None
-            if int(text[73:75] or 1) >= 2:
+            if fmt >= 2:
                 raise src.fail("a binary result block; write the .frd in ASCII (CalculiX's default)")
+            width = 10 if fmt == 1 else 5
             current = None
+            modal = "MODAL" in text[63:73].upper()
+            if modal != (kind == 2):
+                raise src.fail(f"result header {text.strip()!r}: analysis type {kind} and analysis "
+                               f"{text[63:73].strip()!r} disagree (a damaged record?)")
             if kind == 2:
                 if harmonic >= 0:
                     raise src.fail(f"cyclic-symmetry modes (nodal diameter {harmonic}); solve the full wheelset "
                                    f"or expand the sector (*CYCLIC SYMMETRY MODEL) and export real modes")
+                if step is None:
+                    raise src.fail("a mode's result header without its 1PSTEP record before it")
                 current = _Mode(step, number if number is not None else numstep, value, mass, src.i)
                 modes.append(current)
         elif text.startswith(" -4"):
@@ -267,7 +285,13 @@ def _parse(path: str, lines: list[str]):
             if current is not None and name == "DISP":
                 if current.nodes is not None:
                     raise src.fail(f"mode {current.number} has two DISP blocks")
+                if vals.shape[1] < 3:
+                    raise src.fail(f"mode {current.number}: its DISP block holds {vals.shape[1]} components, not 3")
                 current.nodes, current.values = ids, vals[:, :3]
+        elif text.startswith(" -"):
+            # a data record outside any block: its block's header was lost
+            raise src.fail(f"record {text[:3].strip()!r} outside a block (its block header is missing: a damaged "
+                           f"file?)")
         src.i += 1
     if not ended:
         raise src.fail("the file does not end with its ' 9999' record: it is cut short (a copy or a run that did "
@@ -315,6 +339,12 @@ def read_frd(path: str, *, subcase: int | str | None = None) -> FEModes:
                                 f"without U)", line=modes[0].line + 1)
     chosen = choose_step(path, [m.step for m in with_disp], subcase, "frequency step")
     with_disp = [m for m in with_disp if m.step == chosen]
+    numbers = [m.number for m in with_disp]
+    if numbers != list(range(1, len(numbers) + 1)):
+        gaps = sorted(set(range(1, max(numbers) + 1)) - set(numbers))
+        raise FEReadError(path, f"frequency step {chosen}: the modes are numbered {numbers[:12]}"
+                                f"{' ...' if len(numbers) > 12 else ''}, not one after the other"
+                                + (f" (mode(s) {gaps[:5]} missing: a damaged file?)" if gaps else ""))
     row = {n: k for k, n in enumerate(node_ids.tolist())}
     shapes = np.zeros((len(with_disp), node_ids.size, 3))
     for k, m in enumerate(with_disp):
@@ -326,7 +356,6 @@ def read_frd(path: str, *, subcase: int | str | None = None) -> FEModes:
             raise FEReadError(path, f"mode {m.number}: its DISP block {what}", line=m.line + 1)
         shapes[k, [row[n] for n in m.nodes.tolist()]] = m.values
     masses = np.array([m.mass for m in with_disp])
-    numbers = [m.number for m in with_disp]
     if np.any(~(masses > 0)):
         k = int(np.argmax(~(masses > 0)))
         raise FEReadError(path, f"mode {numbers[k]} has generalized mass {masses[k]!r} (1PGM); it must be positive")

@@ -123,6 +123,7 @@ def test_two_frequency_steps_need_a_choice(files, caplog):
 
 
 @pytest.mark.parametrize("edit, match", [
+    (lambda t: t.replace(t[t.index("    1PGK"):t.index(" -5  D2")], "", 1), "outside a block"),
     (lambda t: t[:len(t) // 2], "cut short"),
     (lambda t: t[:t.rindex(" 9999")], "9999"),
     (lambda t: t.replace("    1PHID                         -1", "    1PHID                          2", 1),
@@ -143,18 +144,22 @@ def test_damaged_files_are_refused_by_line(files, tmp_path, edit, match):
     assert "damaged.frd" in str(err.value)
 
 
-@settings(max_examples=40, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow,
+@settings(max_examples=60, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow,
                                                                                   HealthCheck.function_scoped_fixture])
 @given(data=st.data())
 def test_fuzzed_files_read_whole_or_are_refused(files, tmp_path, data):
-    """Cut at any byte, or a byte changed anywhere: the modes of the file, or a FEReadError / UnknownFormatError;
-    never another exception, and never fewer modes than the file has."""
+    """Cut at any byte, a byte changed or a run of bytes lost anywhere: the modes of the file, or a FEReadError /
+    UnknownFormatError; never another exception, and never fewer modes than the file has (a lost mode header
+    leaves its records outside any block, or a gap in the mode numbers: both refused)."""
     raw = files["bar_two_steps"].read_bytes()
-    if data.draw(st.booleans()):
-        raw = raw[:data.draw(st.integers(0, len(raw) - 1))]
-    else:
-        k = data.draw(st.integers(0, len(raw) - 1))
+    how = data.draw(st.sampled_from(["cut", "change", "lose"]))
+    k = data.draw(st.integers(0, len(raw) - 1))
+    if how == "cut":
+        raw = raw[:k]
+    elif how == "change":
         raw = raw[:k] + bytes([data.draw(st.integers(32, 126))]) + raw[k + 1:]
+    else:
+        raw = raw[:k] + raw[k + data.draw(st.integers(1, 400)):]
     path = tmp_path / "fuzz.frd"
     path.write_bytes(raw)
     try:
