@@ -16,6 +16,8 @@ gives every numeric channel with its time stamps and unit (``unit_string``, NI's
 npTDMS reads a file cut short as far as it goes and only logs a WARNING (``Last segment of file has less data
 than expected``); :func:`open_tdms` turns that into a refusal naming the file, so a half record is never read as
 a whole one (and npTDMS's own lines, which say it "will attempt to read to the end", do not reach the terminal).
+Before npTDMS reads, :func:`check_segments` walks the segment lead-ins itself, so a cut file is refused even
+where a program's logging setup silences npTDMS's warning.
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["sniff_tdms", "open_tdms", "channel_records", "TdmsChannel", "TIME_NAMES"]
+__all__ = ["sniff_tdms", "open_tdms", "check_segments", "channel_records", "TdmsChannel", "TIME_NAMES"]
 
 #: Names of a group's explicit time channel (compared without case).
 TIME_NAMES = ("time", "t", "zeit", "timestamp", "time [s]")
@@ -38,6 +40,43 @@ def sniff_tdms(head: bytes) -> bool:
     """True for a TDMS file: its first segment's lead-in tag is ``TDSm`` (an index file, ``.tdms_index``, starts
     ``TDSh`` and holds no data)."""
     return head[:4] == b"TDSm"
+
+
+_LEAD_IN = 28
+_BIG_ENDIAN = 1 << 6
+_INCOMPLETE = 0xFFFFFFFFFFFFFFFF
+
+
+def check_segments(path: Path, error: type[Exception], what: str = "TDMS file") -> int:
+    """Walk the file's segment lead-ins (TDMS file format: ``TDSm``, the table-of-contents mask, the version, the
+    next segment's offset and the raw data's offset); the number of segments, or ``error`` for a file cut short
+    (a segment reaching past the end of the file, or the offset LabVIEW leaves at -1 in a file it never closed)
+    or a lead-in that is not one. This does not depend on npTDMS's warnings, which a program's logging setup may
+    silence."""
+    import struct
+
+    size = Path(path).stat().st_size
+    count = pos = 0
+    with open(path, "rb") as fh:
+        while pos < size:
+            fh.seek(pos)
+            head = fh.read(_LEAD_IN)
+            if len(head) < _LEAD_IN:
+                raise error(f"{path}: the {what} is cut short: segment {count + 1} at byte {pos} has "
+                            f"{len(head)} of the {_LEAD_IN} bytes of its lead-in; copy it again")
+            if head[:4] != b"TDSm":
+                raise error(f"{path}: segment {count + 1} at byte {pos} does not start with 'TDSm' (a damaged "
+                            f"{what})")
+            order = ">" if struct.unpack("<I", head[4:8])[0] & _BIG_ENDIAN else "<"
+            next_offset = struct.unpack(order + "Q", head[12:20])[0]
+            end = pos + _LEAD_IN + next_offset
+            if next_offset == _INCOMPLETE or end > size:
+                raise error(f"{path}: the {what} is cut short: segment {count + 1} at byte {pos} ends "
+                            + ("nowhere (the writer never closed it)" if next_offset == _INCOMPLETE else
+                               f"at byte {end}, the file at byte {size}") + "; copy it again")
+            count += 1
+            pos = end
+    return count
 
 
 class _Collect(logging.Handler):
@@ -54,6 +93,7 @@ def open_tdms(path: Path, error: type[Exception], what: str = "TDMS file"):
     in part (cut short)."""
     from nptdms import TdmsFile
 
+    check_segments(path, error, what)
     collect = _Collect()
     # npTDMS gives each of its loggers a stderr handler: while it reads, its words go to this refusal only
     loggers = [logging.getLogger(n) for n in list(logging.root.manager.loggerDict) if n.startswith("nptdms.")]

@@ -108,7 +108,8 @@ def test_bad_tdms_files_are_refused_by_file_channel_and_hit(tmp_path, capfd):
         ema.read_hammer(tmp_path / "cut.tdms", csv)
     assert "will attempt" not in capfd.readouterr().err  # npTDMS's own lines stay off the terminal
     (tmp_path / "head.tdms").write_bytes(whole[:20])
-    with pytest.raises(ema.TDMSReadError, match=r"head\.tdms: the TDMS file holds no channel"):
+    with pytest.raises(ema.TDMSReadError, match=r"head\.tdms: the TDMS file is cut short: segment 1 at byte 0 has "
+                                                r"20 of the 28 bytes of its lead-in"):
         ema.read_hammer(tmp_path / "head.tdms", csv)
     # an accelerometer written without a time base
     from nptdms import ChannelObject, TdmsWriter

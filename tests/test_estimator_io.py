@@ -175,6 +175,20 @@ def test_a_truncated_tdms_is_a_named_error_not_a_shorter_run(tmp_path, table):
     cut.write_bytes(data[: 2 * len(data) // 3])
     with pytest.raises(RunFileError, match=r"cut\.tdms: the TDMS file is cut short"):
         read_run(cut, table)
+    # refused by the segment lead-ins themselves, not by npTDMS's warning: so also where logging is silenced
+    logging.disable(logging.CRITICAL)
+    try:
+        with pytest.raises(RunFileError, match=r"cut\.tdms: the TDMS file is cut short: segment 1 at byte 0 ends at "
+                                               rf"byte {len(data)}, the file at byte {2 * len(data) // 3}"):
+            read_run(cut, table)
+    finally:
+        logging.disable(logging.NOTSET)
+    # LabVIEW leaves the next-segment offset at -1 in a file it never closed (a DAQ that lost power)
+    open_ = tmp_path / "open.tdms"
+    open_.write_bytes(data[:12] + b"\xff" * 8 + data[20:])
+    with pytest.raises(RunFileError, match=r"open\.tdms: the TDMS file is cut short: segment 1 at byte 0 ends "
+                                           r"nowhere \(the writer never closed it\)"):
+        read_run(open_, table)
 
 
 def test_an_mdf3_file_is_named_as_such_by_the_estimate_and_by_a_batch_reading_its_header(tmp_path, table):
