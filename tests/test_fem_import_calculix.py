@@ -188,3 +188,69 @@ def test_a_clamped_step_is_refused_as_a_wheelset_model_with_the_calculix_advice(
         check_fe_for_model(clamped, total_mass=MASS)
     free = fem_import.read(files["bar_two_steps"], subcase=1)
     assert check_fe_for_model(free, total_mass=MASS).mass == pytest.approx(MASS, rel=1e-5)
+
+
+def _write_frd(path, fe):
+    """``fe``'s translations as CalculiX writes a *FREQUENCY step (CGX long format, E12.5 values); beams and
+    shells as be2 / tr3 / qu4 elements; masses and rigid elements, which CalculiX has no result element for,
+    left out. Written from the CGX manual's record layout, apart from the reader."""
+    cgx = {21: 11, 91: 7, 94: 9}
+    lines = ["    1C", "    1UPGM               CalculiX", f"    2C{fe.node_ids.size:>30d}{'':37s}1"]
+    lines += [f" -1{n:10d}" + "".join(f"{v:12.5E}" for v in p) for n, p in zip(fe.node_ids, fe.xyz)]
+    lines.append(" -3")
+    kept = [e for e in fe.elements if e.fe_descriptor in cgx and len(e.nodes) == {21: 2, 91: 3, 94: 4}[e.fe_descriptor]]
+    lines.append(f"    3C{len(kept):>30d}{'':37s}1")
+    for e in kept:
+        lines.append(f" -1{e.element_id:10d}{cgx[e.fe_descriptor]:5d}{0:5d}{1:5d}")
+        lines.append(" -2" + "".join(f"{n:10d}" for n in e.nodes))
+    lines.append(" -3")
+    for k, f in enumerate(fe.freqs_hz):
+        lines += [f"    1PSTEP{k + 1:>26d}{1:>12d}{1:>12d}", f"    1PGM                {1.0:12.6E}",
+                  f"    1PHID{-1:>30d}", f"    1PMODE{k + 1:>25d}",
+                  f"  100CL{101 + k:5d}{f:12.5E}{fe.node_ids.size:12d}{'':20s} 2{k + 1:5d}MODAL     {1:2d}",
+                  " -4  DISP        4    1", " -5  D1          1    2    1    0", " -5  D2          1    2    2    0",
+                  " -5  D3          1    2    3    0", " -5  ALL         1    2    0    0    1ALL"]
+        u = np.where(np.abs(fe.shapes[k, :, :3]) < 1e-90, 0.0, fe.shapes[k, :, :3])
+        lines += [f" -1{n:10d}" + "".join(f"{v:12.5E}" for v in row) for n, row in zip(fe.node_ids, u)]
+        lines.append(" -3")
+    lines.append(" 9999")
+    path.write_text("\n".join(lines) + "\n")
+    return path, kept
+
+
+def test_the_lab_design_export_as_a_calculix_file_reads_back_to_six_digits(tmp_path):
+    """The virtual lab's design wheelset (the campaign's UFF export: shell webs and discs, beam axle and rims,
+    25 modes with degenerate pairs) written as a CalculiX result: the same nodes and elements, the frequencies and
+    translations to the format's six digits, the same rigid-body mass, and the same shapes at the campaign's
+    sensors on their nodes (what pairing by MAC uses) to 1e-5 of each mode's largest translation; a sensor off its
+    beam node is refused by name, as for any export without rotations."""
+    import pandas as pd
+
+    from lab_data.cache import campaign_dir
+
+    folder = campaign_dir("control")
+    uff = fem_import.read(folder / "fe_design.uff")
+    path, kept = _write_frd(tmp_path / "design.frd", uff)
+    frd = fem_import.read(path)
+    assert frd.format == "calculix-frd" and len(frd) == len(uff) and np.array_equal(frd.node_ids, uff.node_ids)
+    assert [(e.element_id, e.fe_descriptor, e.nodes) for e in frd.elements] == [
+        (e.element_id, e.fe_descriptor, e.nodes) for e in kept]
+    np.testing.assert_allclose(frd.freqs_hz, uff.freqs_hz, rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(frd.xyz, uff.xyz, rtol=1e-5, atol=1e-9)
+    scale = np.abs(uff.shapes[:, :, :3]).max(axis=(1, 2))
+    assert np.all(np.abs(frd.shapes - uff.shapes[:, :, :3]).max(axis=(1, 2)) <= 1e-5 * scale)  # 1.2e-6 measured
+    np.testing.assert_allclose(fem_import.rigid_body_mass(frd).mass, fem_import.rigid_body_mass(uff).mass, rtol=1e-5)
+    channels = pd.read_csv(folder / "flexural_channels.csv")
+    # an axle sensor sits 74 mm off its beam node: a file of translations cannot carry the motion the node's
+    # rotation gives it there, and says so; the sensors on (or within 5 cm of) their nodes read the same
+    with pytest.raises(fem_import.PointToleranceError, match=r"the shapes have no rotations \(3 DOF per node\)"):
+        fem_import.shapes_at_channels(frd, channels)
+    node_xyz = dict(zip(uff.node_ids.tolist(), uff.xyz))
+    near = channels[[np.linalg.norm(np.array([r.x, r.y, r.z]) - node_xyz[int(r.fe_node)]) <= 0.05
+                     for r in channels.itertuples()]]
+    assert 5 <= (near["quantity"] == "acceleration").sum() < (channels["quantity"] == "acceleration").sum()
+    a = fem_import.shapes_at_channels(uff, near)
+    b = fem_import.shapes_at_channels(frd, near)
+    # to 1e-5 of each mode's largest translation (1.1e-6 measured): a sensor's reading d . u of a mode that barely
+    # moves it is the difference of larger components, each to six digits
+    assert np.all(np.abs(b - a).max(axis=0) <= 1e-5 * scale)
