@@ -190,28 +190,30 @@ def test_a_clamped_step_is_refused_as_a_wheelset_model_with_the_calculix_advice(
     assert check_fe_for_model(free, total_mass=MASS).mass == pytest.approx(MASS, rel=1e-5)
 
 
-def _write_frd(path, fe):
-    """``fe``'s translations as CalculiX writes a *FREQUENCY step (CGX long format, E12.5 values); beams and
-    shells as be2 / tr3 / qu4 elements; masses and rigid elements, which CalculiX has no result element for,
-    left out. Written from the CGX manual's record layout, apart from the reader."""
+def _write_frd(path, fe, short=False):
+    """``fe``'s translations as CalculiX writes a *FREQUENCY step (CGX long format, or the short one: node and
+    element numbers in 5 columns, format flag 0; E12.5 values); beams and shells as be2 / tr3 / qu4 elements;
+    masses and rigid elements, which CalculiX has no result element for, left out. Written from the CGX manual's
+    record layout, apart from the reader."""
     cgx = {21: 11, 91: 7, 94: 9}
-    lines = ["    1C", "    1UPGM               CalculiX", f"    2C{fe.node_ids.size:>30d}{'':37s}1"]
-    lines += [f" -1{n:10d}" + "".join(f"{v:12.5E}" for v in p) for n, p in zip(fe.node_ids, fe.xyz)]
+    w, flag = (5, 0) if short else (10, 1)
+    lines = ["    1C", "    1UPGM               CalculiX", f"    2C{fe.node_ids.size:>30d}{'':37s}{flag}"]
+    lines += [f" -1{n:{w}d}" + "".join(f"{v:12.5E}" for v in p) for n, p in zip(fe.node_ids, fe.xyz)]
     lines.append(" -3")
     kept = [e for e in fe.elements if e.fe_descriptor in cgx and len(e.nodes) == {21: 2, 91: 3, 94: 4}[e.fe_descriptor]]
-    lines.append(f"    3C{len(kept):>30d}{'':37s}1")
+    lines.append(f"    3C{len(kept):>30d}{'':37s}{flag}")
     for e in kept:
-        lines.append(f" -1{e.element_id:10d}{cgx[e.fe_descriptor]:5d}{0:5d}{1:5d}")
-        lines.append(" -2" + "".join(f"{n:10d}" for n in e.nodes))
+        lines.append(f" -1{e.element_id:{w}d}{cgx[e.fe_descriptor]:5d}{0:5d}{1:5d}")
+        lines.append(" -2" + "".join(f"{n:{w}d}" for n in e.nodes))
     lines.append(" -3")
     for k, f in enumerate(fe.freqs_hz):
         lines += [f"    1PSTEP{k + 1:>26d}{1:>12d}{1:>12d}", f"    1PGM                {1.0:12.6E}",
                   f"    1PHID{-1:>30d}", f"    1PMODE{k + 1:>25d}",
-                  f"  100CL{101 + k:5d}{f:12.5E}{fe.node_ids.size:12d}{'':20s} 2{k + 1:5d}MODAL     {1:2d}",
+                  f"  100CL{101 + k:5d}{f:12.5E}{fe.node_ids.size:12d}{'':20s} 2{k + 1:5d}MODAL     {flag:2d}",
                   " -4  DISP        4    1", " -5  D1          1    2    1    0", " -5  D2          1    2    2    0",
                   " -5  D3          1    2    3    0", " -5  ALL         1    2    0    0    1ALL"]
         u = np.where(np.abs(fe.shapes[k, :, :3]) < 1e-90, 0.0, fe.shapes[k, :, :3])
-        lines += [f" -1{n:10d}" + "".join(f"{v:12.5E}" for v in row) for n, row in zip(fe.node_ids, u)]
+        lines += [f" -1{n:{w}d}" + "".join(f"{v:12.5E}" for v in row) for n, row in zip(fe.node_ids, u)]
         lines.append(" -3")
     lines.append(" 9999")
     path.write_text("\n".join(lines) + "\n")
@@ -254,3 +256,8 @@ def test_the_lab_design_export_as_a_calculix_file_reads_back_to_six_digits(tmp_p
     # to 1e-5 of each mode's largest translation (1.1e-6 measured): a sensor's reading d . u of a mode that barely
     # moves it is the difference of larger components, each to six digits
     assert np.all(np.abs(b - a).max(axis=0) <= 1e-5 * scale)
+    # the short format (5-column numbers, as CGX writes models whose numbers fit) reads the same
+    short = fem_import.read(_write_frd(tmp_path / "short.frd", uff, short=True)[0])
+    assert np.array_equal(short.node_ids, frd.node_ids) and short.elements == frd.elements
+    np.testing.assert_array_equal(short.shapes, frd.shapes)
+    np.testing.assert_array_equal(short.xyz, frd.xyz)
