@@ -23,6 +23,7 @@ where a program's logging setup silences npTDMS's warning.
 from __future__ import annotations
 
 import logging
+import struct
 from pathlib import Path
 from typing import NamedTuple
 
@@ -53,8 +54,6 @@ def check_segments(path: Path, error: type[Exception], what: str = "TDMS file") 
     (a segment reaching past the end of the file, or the offset LabVIEW leaves at -1 in a file it never closed)
     or a lead-in that is not one. This does not depend on npTDMS's warnings, which a program's logging setup may
     silence."""
-    import struct
-
     size = Path(path).stat().st_size
     count = pos = 0
     with open(path, "rb") as fh:
