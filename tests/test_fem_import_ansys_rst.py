@@ -145,7 +145,7 @@ def test_rotated_nodes_give_the_same_global_shapes(fe, monkeypatch):
 def test_a_truncated_file_is_refused_by_name_before_the_library_reads_it(tmp_path, fraction):
     """The library's C reader aborts the whole process on a record cut short (it did on a file cut at half its
     length); the reader compares the file with the end the result header states (byte 907920 of the 917504: the
-    rest is padding to the 16 kB system record, 98 % is past the data's end)."""
+    rest is padding to the 16 kB system record; a cut at 98 % ends before the data do)."""
     data = open(RST, "rb").read()
     path = tmp_path / "cut.rst"
     path.write_bytes(data[:int(len(data) * fraction)])
