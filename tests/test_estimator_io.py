@@ -916,32 +916,39 @@ def test_a_wide_csv_with_a_daq_programs_preamble(tmp_path):
         read_raw(p)
 
 
+def _same_estimate(mdf_path, other):
+    """The control model's estimates of the MDF 4 run and of ``other``, the same run in another format, are equal
+    to the bit."""
+    from estimator import EstimatorConfig, estimate_run, prepare
+    from test_estimator_synthetic import control_model, sensor_table
+
+    fm = prepare(control_model(), sensor_table(), config=EstimatorConfig(wheelbase_m=2.2))
+    a, b = estimate_run(mdf_path, fm), estimate_run(other, fm)
+    assert b.source.endswith(other.name) and set(a.profiles) == set(b.profiles)
+    pd.testing.assert_frame_equal(a.indexes, b.indexes, check_exact=True)
+    for k in a.profiles:
+        np.testing.assert_array_equal(a.profiles[k].rail, b.profiles[k].rail)
+
+
 def test_a_run_estimated_from_a_wide_csv_equals_its_mdf4(tmp_path):
     """The synthetic run written as MDF 4 and converted to a wide CSV (every channel at its own rate, 17 digits)
     gives the same estimate, to the bit."""
-    from estimator import EstimatorConfig, estimate_run, prepare
     from estimator.io.registry import read_raw
     from estimator.io.wide import write_wide_csv
-    from test_estimator_synthetic import control_model, make_run, sensor_table
+    from test_estimator_synthetic import make_run
 
     sr = make_run(tmp_path, duration_s=30.0)
     raw, _ = read_raw(sr.path)
     wide = write_wide_csv(raw.channels, raw.header, tmp_path / "run_wide.csv")
-    fm = prepare(control_model(), sensor_table(), config=EstimatorConfig(wheelbase_m=2.2))
-    a, b = estimate_run(sr.path, fm), estimate_run(wide, fm)
-    assert b.source.endswith("run_wide.csv") and set(a.profiles) == set(b.profiles)
-    pd.testing.assert_frame_equal(a.indexes, b.indexes, check_exact=True)
-    for k in a.profiles:
-        np.testing.assert_array_equal(a.profiles[k].rail, b.profiles[k].rail)
+    _same_estimate(sr.path, wide)
 
 
 def test_a_run_estimated_from_tdms_equals_its_mdf4(tmp_path):
     """The synthetic run written as MDF 4 and converted to TDMS as an NI DAQ writes it (waveforms per time base,
     the balise events beside a Time channel, the header as root properties): the same channels, stamps and header,
     and the same estimate, to the bit."""
-    from estimator import EstimatorConfig, estimate_run, prepare
     from estimator.io.registry import read_raw
-    from test_estimator_synthetic import control_model, make_run, sensor_table
+    from test_estimator_synthetic import make_run
 
     sr = make_run(tmp_path, duration_s=30.0)
     raw, _ = read_raw(sr.path)
@@ -952,9 +959,4 @@ def test_a_run_estimated_from_tdms_equals_its_mdf4(tmp_path):
     for k, c in raw.channels.items():
         np.testing.assert_array_equal(again.channels[k].t, c.t)
         np.testing.assert_array_equal(again.channels[k].values, c.values)
-    fm = prepare(control_model(), sensor_table(), config=EstimatorConfig(wheelbase_m=2.2))
-    a, b = estimate_run(sr.path, fm), estimate_run(path, fm)
-    assert b.source.endswith("run.tdms") and set(a.profiles) == set(b.profiles)
-    pd.testing.assert_frame_equal(a.indexes, b.indexes, check_exact=True)
-    for k in a.profiles:
-        np.testing.assert_array_equal(a.profiles[k].rail, b.profiles[k].rail)
+    _same_estimate(sr.path, path)

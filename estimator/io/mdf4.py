@@ -22,7 +22,8 @@ from estimator.errors import RunFileError
 from estimator.io.registry import RawChannel, RawRecording
 from estimator.io.sensors import normalise_unit
 
-__all__ = ["sniff", "read_raw", "header_properties", "run_header", "raw_header_comment", "RepeatedHeaderKey"]
+__all__ = ["sniff", "read_raw", "header_properties", "run_header", "raw_header_comment", "RepeatedHeaderKey",
+           "same_channel"]
 
 log = logging.getLogger("estimator")
 
@@ -145,7 +146,8 @@ def _read(mdf, path: Path, name: str, group: int, index: int) -> RawChannel | st
     return RawChannel(name, np.asarray(sig.timestamps, float), values.astype(float), str(sig.unit or ""))
 
 
-def _same(a: RawChannel, b: RawChannel) -> bool:
+def same_channel(a: RawChannel, b: RawChannel) -> bool:
+    """Whether two copies of a channel hold the same data (units compared by :func:`normalise_unit`)."""
     if a is b:
         return True
     return (normalise_unit(a.unit) == normalise_unit(b.unit) and a.t.shape == b.t.shape
@@ -190,7 +192,7 @@ def read_raw(path: Path) -> RawRecording:
                 unusable[name] = next(iter(copies.values()))
                 continue
             first = next(iter(read.values()))
-            if all(_same(first, c) for c in read.values()):
+            if all(same_channel(first, c) for c in read.values()):
                 channels[name] = first
                 continue
             labels = _copy_labels(name, sorted(read))

@@ -8,8 +8,8 @@ file's root properties. Waveform time stamps count from the earliest ``wf_start_
 waveform has one, so channels of different groups share one clock.
 
 A file cut short (npTDMS reads it in part and only warns) is refused, and a name that several groups carry with
-different data is available as ``NAME@GROUP`` (the group's name), ``NAME`` alone listed as unusable, as for an
-MDF 4 file (:func:`estimator.io.mdf4.read_raw`).
+different data (:func:`estimator.io.mdf4.same_channel`) is available as ``NAME@GROUP`` (the group's name),
+``NAME`` alone listed as unusable, as for an MDF 4 file (:func:`estimator.io.mdf4.read_raw`).
 """
 
 from __future__ import annotations
@@ -20,8 +20,8 @@ import numpy as np
 
 from ema.tdms_file import channel_records, open_tdms, sniff_tdms
 from estimator.errors import RunFileError
+from estimator.io.mdf4 import same_channel
 from estimator.io.registry import RawChannel, RawRecording
-from estimator.io.sensors import normalise_unit
 
 __all__ = ["sniff", "read_raw", "header_text"]
 
@@ -36,11 +36,6 @@ def header_text(key: str, value) -> str:
         stamp = np.datetime64(value, "s")
         return str(np.datetime64(stamp, "D")) if key == "date" else np.datetime_as_string(stamp, unit="s")
     return str(value).strip()
-
-
-def _same(a: RawChannel, b: RawChannel) -> bool:
-    return (normalise_unit(a.unit) == normalise_unit(b.unit) and a.t.shape == b.t.shape
-            and np.array_equal(a.t, b.t, equal_nan=True) and np.array_equal(a.values, b.values, equal_nan=True))
 
 
 def read_raw(path: Path) -> RawRecording:
@@ -63,7 +58,7 @@ def read_raw(path: Path) -> RawRecording:
     channels: dict[str, RawChannel] = {}
     for name, recs in by_name.items():
         read = [RawChannel(name, r.t, r.values, r.unit) for r in recs]
-        if all(_same(read[0], c) for c in read[1:]):
+        if all(same_channel(read[0], c) for c in read[1:]):
             channels[name] = read[0]
             unusable.pop(name, None)
             continue
