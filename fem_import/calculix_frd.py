@@ -103,29 +103,41 @@ def _block_count(src: _Lines, header: str, at: int) -> int:
         raise src.fail(f"block header {header.strip()!r} has no count", at) from None
 
 
-def _nodes(src: _Lines, header: str, at: int) -> tuple[np.ndarray, np.ndarray]:
-    width = _width(src, header, at)
-    count = _block_count(src, header, at)
-    ids, xyz = [], []
+def _value_records(src: _Lines, width: int, n_val: int, what: str) -> tuple[np.ndarray, np.ndarray]:
+    """The ``-1`` records (a node number, then ``n_val`` E12.5 values, continued on ``-2`` records beyond 6) up to
+    the block's ``-3``: node numbers and values (n, n_val)."""
     lines = src.lines
+    ids, vals = [], []
     while True:
         src.i += 1
         if src.i >= len(lines):
-            raise src.fail("the node block does not end (no -3 record): the file is cut short")
+            raise src.fail(f"the {what} does not end (no -3 record): the file is cut short")
         text = lines[src.i]
-        key = text[:3]
-        if key == " -3":
+        if text[:3] == " -3":
             break
-        if key != " -1":
-            raise src.fail(f"expected a node record ' -1' in the node block, got {text[:20]!r}")
+        if text[:3] != " -1":
+            raise src.fail(f"expected a record ' -1' in the {what}, got {text[:20]!r}")
         try:
             ids.append(int(text[3:3 + width]))
         except ValueError:
             raise src.fail(f"node number {text[3:3 + width].strip()!r} is not an integer") from None
-        xyz.append(_values(src, text, 3 + width, 3, src.i))
-    if len(ids) != count:
-        raise src.fail(f"the node block holds {len(ids)} nodes, its header says {count}", at)
-    return np.asarray(ids, np.int64), np.asarray(xyz, float).reshape(-1, 3)
+        row = _values(src, text, 3 + width, min(n_val, 6), src.i)
+        while len(row) < n_val:  # continuation records of more than 6 components
+            src.i += 1
+            if src.i >= len(lines) or lines[src.i][:3] != " -2":
+                raise src.fail(f"node {ids[-1]} of the {what} has {len(row)} of its {n_val} values")
+            row += _values(src, lines[src.i], 3 + width, min(n_val - len(row), 6), src.i)
+        vals.append(row)
+    return np.asarray(ids, np.int64), np.asarray(vals, float).reshape(-1, n_val)
+
+
+def _nodes(src: _Lines, header: str, at: int) -> tuple[np.ndarray, np.ndarray]:
+    width = _width(src, header, at)
+    count = _block_count(src, header, at)
+    ids, xyz = _value_records(src, width, 3, "node block")
+    if ids.size != count:
+        raise src.fail(f"the node block holds {ids.size} nodes, its header says {count}", at)
+    return ids, xyz
 
 
 def _elements(src: _Lines, header: str, at: int) -> list[Element]:
@@ -188,30 +200,8 @@ def _result_block(src: _Lines, header: str, at: int, width: int) -> tuple[str, n
     n_val = len(stored)
     if n_val == 0:
         raise src.fail(f"result block {name!r} has no components", at)
-    ids, vals = [], []
-    while True:
-        src.i += 1
-        if src.i >= len(lines):
-            raise src.fail(f"the {name} block does not end (no -3 record): the file is cut short")
-        text = lines[src.i]
-        if text[:3] == " -3":
-            break
-        if text[:3] != " -1":
-            raise src.fail(f"expected a value record ' -1' in the {name} block, got {text[:20]!r}")
-        try:
-            ids.append(int(text[3:3 + width]))
-        except ValueError:
-            raise src.fail(f"node number {text[3:3 + width].strip()!r} is not an integer") from None
-        first = min(n_val, 6)
-        row = _values(src, text, 3 + width, first, src.i)
-        while len(row) < n_val:  # continuation records of more than 6 components
-            src.i += 1
-            if src.i >= len(lines) or lines[src.i][:3] != " -2":
-                raise src.fail(f"node {ids[-1]} of the {name} block has {len(row)} of its {n_val} values")
-            more = min(n_val - len(row), 6)
-            row += _values(src, lines[src.i], 3 + width, more, src.i)
-        vals.append(row)
-    return name, np.asarray(ids, np.int64), np.asarray(vals, float).reshape(-1, n_val)
+    ids, vals = _value_records(src, width, n_val, f"{name} block")
+    return name, ids, vals
 
 
 def _parameter(src: _Lines, text: str, start: int, kind, name: str, index: int = 0):
