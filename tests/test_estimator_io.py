@@ -916,7 +916,7 @@ def test_a_wide_csv_with_a_daq_programs_preamble(tmp_path):
         read_raw(p)
 
 
-def _same_estimate(mdf_path, other):
+def assert_same_estimate(mdf_path, other):
     """The control model's estimates of the MDF 4 run and of ``other``, the same run in another format, are equal
     to the bit."""
     from estimator import EstimatorConfig, estimate_run, prepare
@@ -940,7 +940,8 @@ def test_a_run_estimated_from_a_wide_csv_equals_its_mdf4(tmp_path):
     sr = make_run(tmp_path, duration_s=30.0)
     raw, _ = read_raw(sr.path)
     wide = write_wide_csv(raw.channels, raw.header, tmp_path / "run_wide.csv")
-    _same_estimate(sr.path, wide)
+    assert read_raw(wide)[1] == "csv-wide"
+    assert_same_estimate(sr.path, wide)
 
 
 def test_a_run_estimated_from_tdms_equals_its_mdf4(tmp_path):
@@ -959,4 +960,4 @@ def test_a_run_estimated_from_tdms_equals_its_mdf4(tmp_path):
     for k, c in raw.channels.items():
         np.testing.assert_array_equal(again.channels[k].t, c.t)
         np.testing.assert_array_equal(again.channels[k].values, c.values)
-    _same_estimate(sr.path, path)
+    assert_same_estimate(sr.path, path)
