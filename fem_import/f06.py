@@ -47,7 +47,7 @@ import numpy as np
 
 from .errors import FEReadError
 from .modes import FEModes
-from .nastran_modes import frequencies, grid_shapes, select_subcase
+from .nastran_modes import ParsedMode as _Mode, frequencies, grid_shapes, select_subcase
 from .registry import register_format
 
 __all__ = ["read_f06", "sniff_f06"]
@@ -95,15 +95,6 @@ def _number(token: str) -> float | None:
     return float(m.group(1) + (f"e{m.group(2)}" if m.group(2) else ""))
 
 
-class _Mode:
-    __slots__ = ("number", "eigenvalue", "subcase", "line", "ids", "vals")
-
-    def __init__(self, number, eigenvalue, subcase, line):
-        self.number, self.eigenvalue, self.subcase, self.line = number, eigenvalue, subcase, line
-        self.ids: list[int] = []
-        self.vals: list[list[float]] = []
-
-
 def _parse(path: str, lines: list[str]):
     """The eigenvector tables (in file order) and the eigenvalue table's rows ``{(subcase, mode): (lambda, m)}``."""
     modes: dict[tuple, _Mode] = {}
@@ -111,7 +102,8 @@ def _parse(path: str, lines: list[str]):
     subcase = None
     eigenvalue = None
     current: _Mode | None = None
-    in_table = False
+    in_table = augmented = False
+    rows = 0
     skipped: dict[str, int] = {}
     for i, raw in enumerate(lines):
         line_no = i + 1
@@ -124,7 +116,10 @@ def _parse(path: str, lines: list[str]):
             raise FEReadError(path, "complex eigenvectors are not supported; expected R E A L   E I G E N V E C T O R "
                               "tables (SOL 103)", line=line_no)
         if _TABLE.search(text):
-            in_table, current = True, None
+            in_table, rows, current = True, 0, None
+            continue
+        if in_table and "AFTER AUGMENTATION" in text.upper():
+            augmented = True  # this table's rows replace those printed before the residual vectors were added
             continue
         m = _EIGENVALUE.match(text)
         if m:
@@ -151,17 +146,21 @@ def _parse(path: str, lines: list[str]):
             in_table = False
             continue
         if text.startswith("1"):
-            current = None  # a page eject ends a table; a banner on the next page resumes it
+            # a page eject ends a table; a banner (or the eigenvalue heading) on the next page resumes it
+            current, in_table = None, False
             continue
         tokens = text.split()
         if in_table:
             vals = [_number(t) for t in tokens]
             if len(tokens) == 7 and all(v is not None for v in vals) and tokens[0].isdigit() and tokens[1].isdigit():
                 key = (subcase, int(tokens[0]))
-                if key in table:
+                if key in table and not augmented:
                     raise FEReadError(path, f"mode {tokens[0]} appears twice in the eigenvalue table of subcase "
                                       f"{subcase}", line=line_no)
                 table[key] = (vals[2], vals[5])
+                rows += 1
+            elif tokens and rows:
+                in_table = False  # what follows the rows (a message, OUTPUT2's trailer numbers) is not the table
             continue
         if current is None or len(tokens) < 2 or not tokens[0].isdigit() or len(tokens[1]) != 1:
             continue

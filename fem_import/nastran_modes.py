@@ -1,8 +1,8 @@
-"""What the Nastran result readers (punch, print file) share: choosing a subcase, and one shapes array from
-per-mode grid lists.
+"""What the Nastran result readers (punch, print file, OP2) share: one parsed mode, choosing a subcase, and one
+shapes array from per-mode grid lists.
 
-A parsed mode is any object with ``number``, ``eigenvalue`` (``lambda = omega**2``), ``subcase``, ``line``,
-``ids`` (grid ids) and ``vals`` (T1 T2 T3 R1 R2 R3 per grid).
+A parsed mode (:class:`ParsedMode`, or any object with the same attributes) has ``number``, ``eigenvalue``
+(``lambda = omega**2``), ``subcase``, ``line``, ``ids`` (grid ids) and ``vals`` (T1 T2 T3 R1 R2 R3 per grid).
 """
 
 from __future__ import annotations
@@ -14,9 +14,20 @@ import numpy as np
 
 from .errors import FEReadError
 
-__all__ = ["select_subcase", "grid_shapes", "frequencies"]
+__all__ = ["ParsedMode", "select_subcase", "grid_shapes", "frequencies"]
 
 log = logging.getLogger("fem_import")
+
+
+class ParsedMode:
+    """One eigenvector as a reader collects it: its grids' ids and values are appended as they are read."""
+
+    __slots__ = ("number", "eigenvalue", "subcase", "line", "ids", "vals")
+
+    def __init__(self, number, eigenvalue, subcase, line):
+        self.number, self.eigenvalue, self.subcase, self.line = number, eigenvalue, subcase, line
+        self.ids: list[int] = []
+        self.vals: list = []
 
 
 def select_subcase(path: str, modes: list, subcase, what: str = "file") -> list:

@@ -45,7 +45,7 @@ import numpy as np
 
 from .errors import FEReadError
 from .modes import FEModes
-from .nastran_modes import frequencies, grid_shapes, select_subcase
+from .nastran_modes import ParsedMode as _Mode, frequencies, grid_shapes, select_subcase
 from .registry import register_format
 
 __all__ = ["read_punch", "sniff_punch"]
@@ -91,18 +91,6 @@ def _value(path, line_no, card, field, what):
     except ValueError:
         raise FEReadError(path, f"{what} (columns {lo + 1}-{hi}) is not a number: {text!r}",
                           line=line_no) from None
-
-
-class _Mode:
-    __slots__ = ("number", "eigenvalue", "subcase", "line", "ids", "vals")
-
-    def __init__(self, number, eigenvalue, subcase, line):
-        self.number = number
-        self.eigenvalue = eigenvalue
-        self.subcase = subcase
-        self.line = line
-        self.ids: list[int] = []
-        self.vals: list[tuple] = []
 
 
 def _parse(path: str, lines: list[str], ends_with_newline: bool = True) -> list[_Mode]:

@@ -143,8 +143,8 @@ def test_unknown_content_lists_the_formats(tmp_path):
 
 def test_unknown_format_name_lists_the_formats(tmp_path):
     path = write_small_uff(tmp_path / "small.uff")
-    with pytest.raises(UnknownFormatError, match=r"unknown format 'op2'.*uff.*nastran-punch"):
-        fem_import.read(path, format="op2")
+    with pytest.raises(UnknownFormatError, match=r"unknown format 'abaqus-odb'.*uff.*nastran-punch"):
+        fem_import.read(path, format="abaqus-odb")
 
 
 def test_missing_file_is_named(tmp_path):

@@ -1,0 +1,271 @@
+"""Nastran OP2 results (:mod:`fem_import.nastran_op2`), on files MSC and NX Nastran wrote.
+
+The files are those pyYeti (the OP2 record reader) ships with its own tests: runs of a free-free truss with their
+input decks and print files. The oracles are Nastran's other outputs of the same run, read without pyYeti: the
+print file's weight check (grid point weight generator: mass, centre, inertia) against the mass the rigid-body
+eigenvectors imply, and its eigenvalue table against the OP2's frequencies.
+"""
+
+from __future__ import annotations
+
+import logging
+import random
+import re
+import shutil
+import struct
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import fem_import
+from fem_import.checks import rigid_body_mass
+from fem_import.errors import FEImportError, FEReadError
+from fem_import.nastran_op2 import DECK_TOLERANCE, _grid_geometry, check_records, sniff_op2
+
+pyyeti = pytest.importorskip("pyyeti")
+YETI_TESTS = Path(pyyeti.__file__).parent / "tests"
+
+
+def yeti_file(rel: str) -> Path:
+    p = YETI_TESTS / rel
+    if not p.is_file():
+        pytest.fail(f"pyyeti {pyyeti.__version__} does not ship {rel}; the OP2 tests read the Nastran runs of its "
+                    f"wheel (pyyeti >= 1.4.7)")
+    return p
+
+
+@pytest.fixture()
+def full_run(tmp_path):
+    """The free-free truss run (NX Nastran 9.1, SOL 103 in SEMFREQ, PARAM,POST,-1) with its deck, in a tmp dir."""
+    for ext in (".op2", ".dat", ".out"):
+        shutil.copy(yeti_file(f"nas2cam_extseout/full{ext}"), tmp_path / f"full{ext}")
+    return tmp_path
+
+
+def weight_check(out: Path):
+    """Mass, centre of mass and inertia about it from the print file's grid point weight generator output."""
+    lines = out.read_text(encoding="latin-1").split("\n")
+    k = next(i for i, ln in enumerate(lines) if "MASS AXIS SYSTEM (S)" in ln)
+    rows = [lines[k + j].split() for j in (1, 2, 3)]
+    mass = np.array([float(r[1]) for r in rows])
+    centre = np.array([float(rows[1][2]), float(rows[0][3]), float(rows[0][4])])
+    k = next(i for i in range(k, len(lines)) if lines[i].strip() == "I(S)")
+    inertia = np.array([[float(v) for v in lines[k + j].replace("*", " ").split()] for j in (1, 2, 3)])
+    return mass, centre, inertia
+
+
+def eigenvalue_table(out: Path) -> dict[int, float]:
+    """Mode number -> eigenvalue of the print file's R E A L   E I G E N V A L U E S rows."""
+    rows = {}
+    for ln in out.read_text(encoding="latin-1").split("\n"):
+        t = ln.split()
+        if len(t) == 7 and t[0].isdigit() and t[1].isdigit() and re.fullmatch(r"-?\d\.\d{6}E[+-]\d\d", t[2]):
+            rows.setdefault(int(t[0]), float(t[2]))
+    return rows
+
+
+def test_sniffed_and_read_with_the_decks_elements(full_run):
+    p = full_run / "full.op2"
+    assert fem_import.detect_format(p).name == "nastran-op2"
+    assert sniff_op2(yeti_file("nastran_op2_data/tugd_2020_64bit.op2").read_bytes()[:4096])  # 64-bit words
+    assert not sniff_op2(b"$TITLE   = punch\n") and not sniff_op2(b"\x04\x00\x00\x00\x03\x00\x00\x00")
+    fe = fem_import.read(p)
+    assert (len(fe), fe.node_ids.size, fe.shapes.shape[2]) == (278, 49, 6)
+    assert fe.format == "nastran-op2" and "assumed" in fe.units
+    np.testing.assert_array_equal(fe.mode_numbers, np.arange(1, 279))
+    deck = fem_import.read_geometry(full_run / "full.dat")
+    assert len(fe.elements) == len(deck.elements) == 118
+    # the grid table's coordinates are the deck's (single precision against 8-column fields)
+    where = {n: k for k, n in enumerate(deck.node_ids.tolist())}
+    np.testing.assert_allclose(fe.xyz, deck.xyz[[where[n] for n in fe.node_ids.tolist()]], atol=1e-4)
+
+
+def test_rigid_body_modes_carry_nastrans_weight_check(full_run):
+    """Mass-normalised eigenvectors of the six rigid-body modes imply the structure's mass, centre and inertia; the
+    print file's weight generator computes them from the mass matrix directly. The run is in mm-kg-s."""
+    fe = fem_import.read(full_run / "full.op2").in_si_units("mm-kg-s")
+    rb = rigid_body_mass(fe)
+    mass, centre, inertia = weight_check(full_run / "full.out")
+    assert rb.modes == (1, 2, 3, 4, 5, 6)
+    np.testing.assert_allclose(rb.masses, mass, rtol=1e-6)       # 3.345436 kg
+    np.testing.assert_allclose(rb.centre * 1e3, centre, atol=1e-3)  # (633.370, 150, 150) mm
+    np.testing.assert_allclose(np.diag(rb.inertia) * 1e6, np.diag(inertia), rtol=1e-6)
+
+
+def test_frequencies_are_the_print_files(full_run):
+    fe = fem_import.read(full_run / "full.op2")
+    table = eigenvalue_table(full_run / "full.out")
+    lam = np.array([table[n] for n in fe.mode_numbers.tolist()])
+    f = np.sqrt(np.maximum(lam, 0.0)) / (2 * np.pi)
+    assert np.all(fe.freqs_hz[:6] < 1e-3)
+    # 7 printed digits
+    np.testing.assert_allclose(fe.freqs_hz[6:], f[6:], rtol=1e-6)
+    assert fe.freqs_hz[6] == pytest.approx(1.699, abs=1e-3)
+
+
+def test_the_print_file_of_the_same_run_reads_its_eigenvalue_table(full_run):
+    """The print file of a run that also writes an OP2 holds OUTPUT2's trailer lines (seven integers after the
+    eigenvalue table), which are not table rows."""
+    from fem_import import f06
+
+    path = full_run / "full.out"
+    _, table = f06._parse(str(path), path.read_text(encoding="latin-1").split("\n"))
+    assert sorted(n for _, n in table) == list(range(1, 279))
+
+
+def test_elements_left_out_without_a_matching_deck(full_run, caplog):
+    p = full_run / "full.op2"
+    (full_run / "full.out").unlink()
+    deck = (full_run / "full.dat").read_text()
+    (full_run / "full.dat").unlink()
+    with caplog.at_level(logging.INFO, logger="fem_import"):
+        alone = fem_import.read(p)
+    assert alone.has_coordinates and alone.elements == ()
+    assert "no input deck beside the file" in caplog.text
+    # a deck of another mesh: grid 1 moved by 1 % of the model's size
+    size = float(np.linalg.norm(np.ptp(alone.xyz, axis=0)))
+    moved = deck.replace("GRID           1       0      0.      0.    300.",
+                         f"GRID           1       0{-0.01 * size:8.2f}      0.    300.")
+    assert moved != deck and 0.01 > DECK_TOLERANCE
+    (full_run / "full.dat").write_text(moved)
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="fem_import"):
+        fe = fem_import.read(p)
+    assert fe.elements == () and "grid 1 sits" in caplog.text
+    np.testing.assert_array_equal(fe.xyz, alone.xyz)
+
+
+def test_a_given_geometry_replaces_the_grid_table(full_run):
+    p = full_run / "full.op2"
+    own = fem_import.read(p)
+    given = fem_import.read(p, geometry=full_run / "full.dat")
+    order = np.argsort(given.node_ids)  # the deck's grid order
+    np.testing.assert_array_equal(given.node_ids[order], own.node_ids)
+    np.testing.assert_allclose(given.xyz[order], own.xyz, atol=1e-4)
+    np.testing.assert_array_equal(given.shapes[:, order], own.shapes)
+    assert len(given.elements) == len(own.elements)
+    fe, where = fem_import.read_with_geometry(p, units="mm-kg-s")
+    assert "full.op2" in where and fe.xyz[:, 0].max() == pytest.approx(own.xyz[:, 0].max() / 1000)
+
+
+def test_displacement_systems_turn_the_shapes_to_basic():
+    """A grid whose CD is a cylindrical system has its eigenvector components radial, tangential and axial; the
+    grid table (basic position, CD) and CSTM (origin, axes) give the frame at the grid. System 20: origin (0, 1, 3),
+    axes e1 = basic y, e2 = basic z, e3 = basic x. Grid 8 at basic (1, 1, 5) is at local (0, 2, 1): radius 2 along
+    e2, so radial = basic z, tangential = -e1 = -basic y, axial = basic x."""
+    from fem_import.registry import Geometry, merge_geometry
+
+    ids = np.array([7, 8])
+    xyz = np.array([[0.5, 2.0, 0.0], [1.0, 1.0, 5.0]])
+    index = pd.MultiIndex.from_tuples([(n, d) for n in ids.tolist() for d in range(1, 7)], names=("id", "dof"))
+    values = np.zeros((12, 3))
+    values[0], values[6] = xyz
+    values[1], values[7] = (0, 1, 0), (20, 2, 0)
+    axes = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    cstm2 = {20: np.vstack([[20, 2, 0], [0.0, 1.0, 3.0], axes])}
+    got_xyz, frames = _grid_geometry("x.op2", {"uset": pd.DataFrame(values, index=index, columns=["x", "y", "z"]),
+                                               "cstm2": cstm2}, ids)
+    np.testing.assert_array_equal(got_xyz, xyz)
+    np.testing.assert_array_equal(frames[0], np.eye(3))
+    np.testing.assert_allclose(frames[1], [[0, 0, 1], [0, -1, 0], [1, 0, 0]], atol=1e-15)
+    # a mode whose grid 8 moves 1 radially and turns 2 about the tangent: basic z, and -2 about basic y
+    shapes = np.zeros((1, 2, 6))
+    shapes[0, 1] = (1, 0, 0, 0, 2, 0)
+    fe = fem_import.FEModes(ids, np.full((2, 3), np.nan), (), np.array([10.0]), shapes, np.ones(1),
+                            format="nastran-op2")
+    turned = merge_geometry(fe, Geometry(ids, got_xyz, (), "x.op2", displacement_frames=frames))
+    np.testing.assert_allclose(turned.shapes[0, 1], [0, 0, 1, 0, -2, 0], atol=1e-15)
+    values[7] = (21, 2, 0)
+    with pytest.raises(FEReadError, match="system 21 of grid"):
+        _grid_geometry("x.op2", {"uset": pd.DataFrame(values, index=index, columns=["x", "y", "z"]),
+                                 "cstm2": cstm2}, ids)
+
+
+def test_other_files_of_the_library():
+    # eigenvectors without a grid table: coordinates from a deck, as for a punch
+    fe = fem_import.read(yeti_file("nastran_op2_data/rdop2gpwg_1.op2"))
+    assert (len(fe), fe.node_ids.size, fe.has_coordinates) == (18, 10, False)
+    with pytest.raises(FEReadError, match="several superelements"):
+        fem_import.read(yeti_file("nas2cam_extseout/assemble.op2"))
+    with pytest.raises(FEReadError, match="no real eigenvectors"):
+        fem_import.read(yeti_file("nastran_op2_data/tugd_2020_64bit.op2"))
+
+
+def _record_ends(data: bytes) -> list[int]:
+    ends, pos = [], 0
+    while pos < len(data):
+        pos += 8 + struct.unpack_from("<i", data, pos)[0]
+        ends.append(pos)
+    return ends
+
+
+@pytest.mark.parametrize("rel", ["nas2cam_extseout/inboard.op2", "nastran_op2_data/rdop2gpwg_1.op2"])
+def test_a_cut_file_is_refused_or_read_whole(tmp_path, rel):
+    """Cut at every record boundary and at random bytes: a refusal, or (a cut after the eigenvector tables, whose
+    later tables are not read) the modes of the whole file; never fewer modes or grids."""
+    data = yeti_file(rel).read_bytes()
+    ref = fem_import.read(yeti_file(rel))
+    rng = random.Random(3)
+    cuts = _record_ends(data)[:-1] + rng.sample(range(100, len(data)), 60)
+    p = tmp_path / "cut.op2"
+    outcomes = {"refused": 0, "whole": 0}
+    for c in cuts:
+        p.write_bytes(data[:c])
+        try:
+            fe = fem_import.read(p)
+        except FEImportError:  # FEReadError; a cut inside the header record is not recognised as an OP2
+            outcomes["refused"] += 1
+            continue
+        assert (len(fe), fe.node_ids.size) == (len(ref), ref.node_ids.size), f"cut at byte {c}"
+        np.testing.assert_array_equal(fe.shapes, ref.shapes)
+        outcomes["whole"] += 1
+    assert outcomes["refused"] > 0.9 * len(cuts)
+    with pytest.raises(FEReadError, match="declares .* bytes, but the file ends"):
+        p.write_bytes(data[:len(data) // 2])
+        check_records(str(p))
+
+
+def test_a_changed_byte_is_refused_or_read(tmp_path):
+    """Single-byte changes anywhere: a named refusal or finite modes, never another exception."""
+    src = yeti_file("nas2cam_extseout/inboard.op2")
+    data = src.read_bytes()
+    rng = random.Random(5)
+    p = tmp_path / "changed.op2"
+    refused = 0
+    for _ in range(150):
+        b = bytearray(data)
+        b[rng.randrange(len(b))] = rng.randrange(256)
+        p.write_bytes(bytes(b))
+        try:
+            fe = fem_import.read(p)
+        except FEImportError:
+            refused += 1
+            continue
+        assert np.all(np.isfinite(fe.shapes)) and np.all(np.isfinite(fe.freqs_hz))
+    assert refused > 0
+
+
+def test_an_eigenvalue_table_after_residual_vector_augmentation_replaces_the_first():
+    """Nastran prints the eigenvalue table before and after adding residual vectors (RESVEC); the rows of the
+    second are the eigenvectors' own. Two tables of one subcase without that heading are still refused."""
+    from fem_import import f06
+
+    def table(heading, rows):
+        return ["1    RUN                                       PAGE  3", "0                     SUBCASE 1",
+                "                 R E A L   E I G E N V A L U E S", heading,
+                "   MODE    EXTRACTION      EIGENVALUE   RADIANS   CYCLES   GENERALIZED   GENERALIZED",
+                "    NO.       ORDER                                          MASS         STIFFNESS"] + [
+                f"{n:9d}{n:10d}   {lam:.6E}   1.0E+00   1.0E+00   {m:.6E}   {lam:.6E}" for n, lam, m in rows]
+
+    before = table("         (BEFORE AUGMENTATION OF RESIDUAL VECTORS)", [(1, 4.0e4, 1.0), (2, 9.0e4, 1.0)])
+    after = table("         (AFTER AUGMENTATION OF RESIDUAL VECTORS)",
+                  [(1, 4.0e4, 1.0), (2, 9.0e4, 1.0), (3, 4.0e6, 2.0)])
+    trailer = [" *** USER INFORMATION MESSAGE 4114 (OUTPX2)", "     DATA BLOCK LAMA     WRITTEN ON FORTRAN UNIT  12",
+               "                    101                 3                 0                 0                 0"
+               "                 0                 0"]
+    _, rows = f06._parse("run.f06", before + trailer + after + trailer)
+    assert rows == {(1, 1): (4.0e4, 1.0), (1, 2): (9.0e4, 1.0), (1, 3): (4.0e6, 2.0)}
+    with pytest.raises(FEReadError, match="mode 1 appears twice"):
+        f06._parse("run.f06", before + before)
