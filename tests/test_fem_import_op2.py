@@ -269,3 +269,161 @@ def test_an_eigenvalue_table_after_residual_vector_augmentation_replaces_the_fir
     assert rows == {(1, 1): (4.0e4, 1.0), (1, 2): (9.0e4, 1.0), (1, 3): (4.0e6, 2.0)}
     with pytest.raises(FEReadError, match="mode 1 appears twice"):
         f06._parse("run.f06", before + before)
+
+
+# ------------------------------------------------------------------------- the lab's design export as an OP2
+def write_op2(path: Path, modes, *, gen_mass=None, subcase: int = 1, scalars=(), lama: bool = True) -> Path:
+    """A 32-bit little-endian OP2 of a SOL 103 run written with ``struct`` alone, in the record layout of the NX
+    Nastran files above (header records, then per table: name, trailer, header record, and each record preceded
+    by its word count and followed by its ``-k 1 0`` markers; ``0`` ends a table, another ``0`` the file): the
+    eigenvalue table (LAMA) and one OUGV1 identification and data record per mode. ``modes`` is [(mode number,
+    eigenvalue (rad/s)^2, ids, (n, 6) values[, subcase])]; no grid table (the coordinates come from a deck)."""
+    out = bytearray()
+
+    def rec(body: bytes):
+        out.extend(struct.pack("<i", len(body)) + body + struct.pack("<i", len(body)))
+
+    def key(v: int):
+        rec(struct.pack("<i", v))
+
+    def table(name: str, records):
+        name8 = f"{name:<8}".encode()
+        key(2), rec(name8), key(-1), key(7), rec(struct.pack("<7i", 101, len(records), 0, 0, 0, 0, 0))
+        key(-2), key(1), key(0), key(2), rec(name8)
+        for j, body in enumerate(records, start=3):
+            key(-j), key(1), key(0), key(len(body) // 4), rec(body)
+        key(-(len(records) + 3)), key(1), key(0), key(0)
+
+    key(3), rec(struct.pack("<3i", 12, 1, 26)), key(7), rec(b"NASTRAN FORT TAPE ID CODE - ")
+    key(2), rec(b"NX9.1   "), key(-1), key(0)
+    gm = np.ones(len(modes)) if gen_mass is None else np.asarray(gen_mass, float)
+    title = b"RAILMODAL TEST".ljust(128)
+    if lama:
+        rows = b"".join(struct.pack("<2i5f", n, k + 1, lam, np.sqrt(max(lam, 0)), np.sqrt(max(lam, 0)) / 2 / np.pi,
+                                    gm[k], gm[k] * lam) for k, (n, lam, *_) in enumerate(modes))
+        table("LAMA", [struct.pack("<10i", 21, 6, 0, 0, 0, 0, 0, 0, 0, 7) + bytes(4 * 40) + title * 3, rows])
+    records = []
+    for n, lam, ids, vals, *case in modes:
+        # approach 2 x 10 + device 2, table 7, -, subcase, mode, eigenvalue, -, -, format 1, 8 words per point
+        ident = struct.pack("<5if4i", 22, 7, 0, case[0] if case else subcase, n, lam, 0, 0, 1, 8) + bytes(4 * 40)
+        points = b"".join(struct.pack("<2i6f", int(g) * 10 + 2, 1, *row) for g, row in zip(ids, vals))
+        points += b"".join(struct.pack("<2i6f", int(s) * 10 + 2, 2, 0.0, 0, 0, 0, 0, 0) for s in scalars)
+        records += [ident + title * 3, points]
+    table("OUGV1", records)
+    key(0)
+    path.write_bytes(bytes(out))
+    return path
+
+
+def _design():
+    from lab_data.cache import campaign_dir
+
+    return fem_import.read(campaign_dir("control") / "fe_design.uff")
+
+
+def _modes(fe, scale=None):
+    lam = (2 * np.pi * fe.freqs_hz) ** 2
+    s = np.ones(len(fe)) if scale is None else scale
+    return [(int(n), float(lam[k]), fe.node_ids, fe.shapes[k] * s[k]) for k, n in enumerate(fe.mode_numbers)]
+
+
+def test_the_design_export_as_an_op2_gives_the_universal_files_modes(tmp_path, caplog):
+    """The lab's design export (25 modes on 1129 grids, 6 DOF) written as an OP2 with a scalar point, its deck
+    beside it: the same modes to single precision, coordinates and elements from the deck, mode numbers kept."""
+    import fe_exports_support as fx
+
+    fe = _design()
+    write_op2(tmp_path / "ws.op2", _modes(fe), scalars=(99001,))
+    geo = fem_import.read_geometry(_design().source)
+    elements = [(e.element_id, e.fe_descriptor, e.nodes, e.physical_property) for e in geo.elements]
+    (tmp_path / "ws.bdf").write_text(fx.deck(fx.grids(fe.node_ids, fe.xyz) + fx.element_cards(elements)))
+    with caplog.at_level(logging.INFO, logger="fem_import"):
+        got, where = fem_import.read_with_geometry(tmp_path / "ws.op2")
+    assert "companion file" in where and "scalar point x1" in caplog.text
+    np.testing.assert_array_equal(got.node_ids, fe.node_ids)
+    np.testing.assert_array_equal(got.mode_numbers, fe.mode_numbers)
+    assert len(got.elements) == len(fe.elements) == 1068
+    np.testing.assert_allclose(got.xyz, fe.xyz, atol=1e-9)
+    np.testing.assert_allclose(got.freqs_hz, fe.freqs_hz, rtol=1e-7, atol=1e-3)
+    np.testing.assert_allclose(got.shapes, fe.shapes, rtol=1e-6, atol=1e-7 * np.abs(fe.shapes).max())
+
+
+def test_a_norm_max_op2_is_mass_normalised_by_its_generalized_mass(tmp_path):
+    fe = _design()
+    c = 1.0 / np.abs(fe.shapes[6:]).max(axis=(1, 2))
+    flexible = fem_import.FEModes(fe.node_ids, fe.xyz, fe.elements, fe.freqs_hz[6:], fe.shapes[6:],
+                                  fe.modal_mass[6:], mode_numbers=fe.mode_numbers[6:])
+    write_op2(tmp_path / "max.op2", _modes(flexible, c), gen_mass=c ** 2)
+    got = fem_import.read(tmp_path / "max.op2")
+    assert "the eigenvalue table's generalized mass" in got.history[-1]
+    np.testing.assert_allclose(got.shapes, flexible.shapes, rtol=2e-6, atol=2e-7 * np.abs(fe.shapes).max())
+    # without its eigenvalue table the shapes are taken as they are, and said
+    write_op2(tmp_path / "nolama.op2", _modes(flexible), lama=False)
+    assert "taken as mass-normalised" in fem_import.read(tmp_path / "nolama.op2").history[-1]
+
+
+def test_op2_refusals(tmp_path):
+    fe = _design()
+    modes = _modes(fe)[:8]
+    # two subcases (a free run and another): a choice, or the lowest with a warning on the command line's path
+    write_op2(tmp_path / "two.op2", [m + (1,) for m in modes[:4]] + [m + (2,) for m in modes[4:]], lama=False)
+    with pytest.raises(FEReadError, match=r"2 subcases \[1, 2\]"):
+        fem_import.read(tmp_path / "two.op2")
+    np.testing.assert_array_equal(fem_import.read(tmp_path / "two.op2", subcase=2).mode_numbers, [5, 6, 7, 8])
+    # a mode that lacks a grid of the others (a file cut inside a record and patched up)
+    short = [modes[0], (modes[1][0], modes[1][1], modes[1][2][:-1], modes[1][3][:-1])] + modes[2:]
+    write_op2(tmp_path / "gap.op2", short)
+    with pytest.raises(FEReadError, match=r"eigenvector 2 lacks grid\(s\)"):
+        fem_import.read(tmp_path / "gap.op2")
+    # a LAMA of more modes than eigenvectors: eigenvectors lost
+    p = write_op2(tmp_path / "short.op2", modes)
+    data = p.read_bytes()
+    write_op2(tmp_path / "seven.op2", modes[:7])
+    seven = (tmp_path / "seven.op2").read_bytes()
+    lama_end = seven.index(b"OUGV1   ") - 12
+    full_lama_end = data.index(b"OUGV1   ") - 12
+    (tmp_path / "lost.op2").write_bytes(data[:full_lama_end] + seven[lama_end:])
+    with pytest.raises(FEReadError, match=r"LAMA.*holds 8 modes, the eigenvector tables 7"):
+        fem_import.read(tmp_path / "lost.op2")
+    # SORT2 and complex eigenvectors by name
+    for code, words in ((1007, "SORT2"), (2007, "complex eigenvectors")):
+        b = bytearray(data)
+        at = b.index(struct.pack("<2i", 22, 7))
+        while at >= 0:
+            b[at + 4:at + 8] = struct.pack("<i", code)
+            at = b.find(struct.pack("<2i", 22, 7), at + 8)
+        (tmp_path / "x.op2").write_bytes(bytes(b))
+        with pytest.raises(FEReadError, match=words):
+            fem_import.read(tmp_path / "x.op2")
+    # cut inside the eigenvector table's closing markers: the table and the file are not closed
+    (tmp_path / "open.op2").write_bytes(data[:-24])
+    with pytest.raises(FEReadError, match="without Nastran's end-of-file records"):
+        fem_import.read(tmp_path / "open.op2")
+
+
+def test_lab_pair_on_the_op2_gives_the_universal_files_pairing(tmp_path):
+    """End to end: the small campaign's identified modes paired with the OP2 of its design export (coordinates and
+    elements from ``--geometry``, the universal file itself): the pairing of the universal file."""
+    from bad_inputs_support import identify_and_pair
+    from railmodal.cli import main
+
+    modes, pairing = identify_and_pair(campaign_src(), tmp_path / "c")
+    fe = fem_import.read(tmp_path / "c" / "fe_design.uff")
+    write_op2(tmp_path / "ws.op2", _modes(fe))
+    assert main(["-q", "lab", "pair", "--modes", str(modes), "--fem", str(tmp_path / "ws.op2"), "--geometry",
+                 str(tmp_path / "c" / "fe_design.uff"), "--out", str(tmp_path / "op2_pairing")]) == 0
+    ref = pd.read_csv(pairing / "pairing.csv")
+    got = pd.read_csv(tmp_path / "op2_pairing" / "pairing.csv")
+    assert len(got) == len(ref) > 3
+    for col in ref.columns:
+        if pd.api.types.is_numeric_dtype(ref[col]):
+            # single-precision eigenvalues: frequencies to 3e-8, so df_pct [%] to a few 1e-6
+            np.testing.assert_allclose(got[col], ref[col], rtol=1e-5, atol=1e-5, err_msg=col)
+        else:
+            assert got[col].tolist() == ref[col].tolist(), col
+
+
+def campaign_src():
+    from lab_data.cache import campaign_dir
+
+    return campaign_dir("control")
