@@ -272,42 +272,51 @@ def test_an_eigenvalue_table_after_residual_vector_augmentation_replaces_the_fir
 
 
 # ------------------------------------------------------------------------- the lab's design export as an OP2
-def write_op2(path: Path, modes, *, gen_mass=None, subcase: int = 1, scalars=(), lama: bool = True) -> Path:
-    """A 32-bit little-endian OP2 of a SOL 103 run written with ``struct`` alone, in the record layout of the NX
-    Nastran files above (header records, then per table: name, trailer, header record, and each record preceded
-    by its word count and followed by its ``-k 1 0`` markers; ``0`` ends a table, another ``0`` the file): the
-    eigenvalue table (LAMA) and one OUGV1 identification and data record per mode. ``modes`` is [(mode number,
-    eigenvalue (rad/s)^2, ids, (n, 6) values[, subcase])]; no grid table (the coordinates come from a deck)."""
+def write_op2(path: Path, modes, *, gen_mass=None, subcase: int = 1, scalars=(), lama: bool = True,
+              endian: str = "<", word: int = 4) -> Path:
+    """An OP2 of a SOL 103 run written with ``struct`` alone, in the record layout of the NX Nastran files above
+    (header records, then per table: name, trailer, header record, and each record preceded by its word count and
+    followed by its ``-k 1 0`` markers; ``0`` ends a table, another ``0`` the file): the eigenvalue table (LAMA)
+    and one OUGV1 identification and data record per mode. ``modes`` is [(mode number, eigenvalue (rad/s)^2, ids,
+    (n, 6) values[, subcase])]; no grid table (the coordinates come from a deck). ``word`` 8 writes the 64-bit
+    form of ``tugd_2020_64bit.op2``: 8-byte integers and reals, each 4 characters of a name padded to 8 bytes."""
     out = bytearray()
+    i, f = ("i", "f") if word == 4 else ("q", "d")
+
+    def pack(fmt: str, *values) -> bytes:
+        return struct.pack(endian + fmt.replace("i", i).replace("f", f), *values)
+
+    def text(s: bytes) -> bytes:
+        return b"".join(s[k:k + 4].ljust(word) for k in range(0, len(s), 4))
 
     def rec(body: bytes):
-        out.extend(struct.pack("<i", len(body)) + body + struct.pack("<i", len(body)))
+        out.extend(struct.pack(endian + "i", len(body)) + body + struct.pack(endian + "i", len(body)))
 
     def key(v: int):
-        rec(struct.pack("<i", v))
+        rec(pack("i", v))
 
     def table(name: str, records):
-        name8 = f"{name:<8}".encode()
-        key(2), rec(name8), key(-1), key(7), rec(struct.pack("<7i", 101, len(records), 0, 0, 0, 0, 0))
+        name8 = text(f"{name:<8}".encode())
+        key(2), rec(name8), key(-1), key(7), rec(pack("7i", 101, len(records), 0, 0, 0, 0, 0))
         key(-2), key(1), key(0), key(2), rec(name8)
         for j, body in enumerate(records, start=3):
-            key(-j), key(1), key(0), key(len(body) // 4), rec(body)
+            key(-j), key(1), key(0), key(len(body) // word), rec(body)
         key(-(len(records) + 3)), key(1), key(0), key(0)
 
-    key(3), rec(struct.pack("<3i", 12, 1, 26)), key(7), rec(b"NASTRAN FORT TAPE ID CODE - ")
-    key(2), rec(b"NX9.1   "), key(-1), key(0)
+    key(3), rec(pack("3i", 12, 1, 26)), key(7), rec(text(b"NASTRAN FORT TAPE ID CODE - "))
+    key(2), rec(text(b"NX9.1   ")), key(-1), key(0)
     gm = np.ones(len(modes)) if gen_mass is None else np.asarray(gen_mass, float)
-    title = b"RAILMODAL TEST".ljust(128)
+    title = text(b"RAILMODAL TEST".ljust(128))
     if lama:
-        rows = b"".join(struct.pack("<2i5f", n, k + 1, lam, np.sqrt(max(lam, 0)), np.sqrt(max(lam, 0)) / 2 / np.pi,
-                                    gm[k], gm[k] * lam) for k, (n, lam, *_) in enumerate(modes))
-        table("LAMA", [struct.pack("<10i", 21, 6, 0, 0, 0, 0, 0, 0, 0, 7) + bytes(4 * 40) + title * 3, rows])
+        rows = b"".join(pack("2i5f", n, k + 1, lam, np.sqrt(max(lam, 0)), np.sqrt(max(lam, 0)) / 2 / np.pi,
+                             gm[k], gm[k] * lam) for k, (n, lam, *_) in enumerate(modes))
+        table("LAMA", [pack("10i", 21, 6, 0, 0, 0, 0, 0, 0, 0, 7) + bytes(word * 40) + title * 3, rows])
     records = []
     for n, lam, ids, vals, *case in modes:
         # approach 2 x 10 + device 2, table 7, -, subcase, mode, eigenvalue, -, -, format 1, 8 words per point
-        ident = struct.pack("<5if4i", 22, 7, 0, case[0] if case else subcase, n, lam, 0, 0, 1, 8) + bytes(4 * 40)
-        points = b"".join(struct.pack("<2i6f", int(g) * 10 + 2, 1, *row) for g, row in zip(ids, vals))
-        points += b"".join(struct.pack("<2i6f", int(s) * 10 + 2, 2, 0.0, 0, 0, 0, 0, 0) for s in scalars)
+        ident = pack("5if4i", 22, 7, 0, case[0] if case else subcase, n, lam, 0, 0, 1, 8) + bytes(word * 40)
+        points = b"".join(pack("2i6f", int(g) * 10 + 2, 1, *row) for g, row in zip(ids, vals))
+        points += b"".join(pack("2i6f", int(s) * 10 + 2, 2, 0.0, 0, 0, 0, 0, 0) for s in scalars)
         records += [ident + title * 3, points]
     table("OUGV1", records)
     key(0)
@@ -427,3 +436,19 @@ def campaign_src():
     from lab_data.cache import campaign_dir
 
     return campaign_dir("control")
+
+
+@pytest.mark.parametrize("endian, word", [(">", 4), ("<", 8), (">", 8)])
+def test_big_endian_and_64_bit_files(tmp_path, endian, word):
+    """The same run in the byte orders and word sizes Nastran writes (Unix big-endian machines, ``-ilp64`` runs):
+    the modes of the 32-bit little-endian file, 64-bit reals to double precision."""
+    fe = _design()
+    ref = fem_import.read(write_op2(tmp_path / "le32.op2", _modes(fe)[:9]))
+    p = write_op2(tmp_path / "x.op2", _modes(fe)[:9], endian=endian, word=word)
+    assert fem_import.detect_format(p).name == "nastran-op2"
+    assert check_records(str(p)) == (endian, word)
+    got = fem_import.read(p)
+    np.testing.assert_array_equal(got.node_ids, ref.node_ids)
+    tol = 1e-6 if word == 4 else 1e-12
+    np.testing.assert_allclose(got.shapes, fe.shapes[:9], rtol=tol, atol=tol * np.abs(fe.shapes).max())
+    np.testing.assert_allclose(got.freqs_hz[6:], fe.freqs_hz[6:9], rtol=tol)
