@@ -63,7 +63,8 @@ from .registry import (
     unregister_format,
 )
 from . import uff as _uff, punch as _punch, f06 as _f06, nastran_bulk as _bulk  # noqa: E402,F401  (built-in readers)
-from . import ansys_rst as _rst, calculix_frd as _frd, nastran_op2 as _op2  # noqa: E402,F401
+from . import ansys_rst as _rst, calculix_frd as _frd  # noqa: E402,F401
+from . import nastran_op2 as _op2, nastran_h5 as _h5  # noqa: E402,F401
 from .checks import (  # noqa: E402
     MassNormalisationError,
     RigidBodyMass,

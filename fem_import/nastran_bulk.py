@@ -95,7 +95,7 @@ from .nastran_coords import resolve
 from .registry import Geometry, register_format
 
 __all__ = ["read_bulk_geometry", "bulk_geometry", "sniff_bulk", "parse_nastran_real", "BULK_SUFFIXES",
-           "CARD_DESCRIPTORS"]
+           "CARD_DESCRIPTORS", "element_from_fields"]
 
 log = logging.getLogger("fem_import")
 
@@ -492,7 +492,10 @@ CARD_DESCRIPTORS = {
 _SCALAR_OK = {"CELAS1", "CELAS2"}
 
 
-def _element(path: str, name: str, fields: list[str], line: int) -> tuple[int, int, tuple[int, ...], int]:
+def element_from_fields(path: str, name: str, fields: list[str], line: int) -> tuple[int, int, tuple[int, ...], int]:
+    """``(element id, FE descriptor, node ids, property id)`` of an element entry ``name`` (a key of
+    :data:`CARD_DESCRIPTORS`) from its fields after the name, as text in the card's field order (blank: absent).
+    Shared with the readers of other Nastran files that hold the same entries (:mod:`fem_import.nastran_h5`)."""
     card = _Card(path, name, fields, line)
     if name in _LINEAR_ONLY:
         card = _Card(path, name, fields[:2 + _LINEAR_ONLY[name]], line)
@@ -641,7 +644,7 @@ def bulk_geometry(path: str, lines: list[str], start: int = 0) -> Geometry:
                 table[cid] = spec
             continue
         if name in _BUILDERS:
-            eid, desc, nodes, pid = _element(path, name, fields, line_no)
+            eid, desc, nodes, pid = element_from_fields(path, name, fields, line_no)
             raw_elements.append((eid, desc, nodes, pid, name, line_no))
             continue
         skipped[name] = skipped.get(name, 0) + 1

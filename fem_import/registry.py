@@ -34,7 +34,7 @@ __all__ = ["FormatInfo", "Geometry", "register_format", "unregister_format", "fo
 log = logging.getLogger("fem_import")
 
 #: Nastran result files: eigenvectors in each grid's displacement system (CD), subcases
-NASTRAN_RESULTS = ("nastran-punch", "nastran-f06", "nastran-op2")
+NASTRAN_RESULTS = ("nastran-punch", "nastran-f06", "nastran-op2", "nastran-h5")
 #: Files holding several solutions, read with ``subcase=`` (Nastran subcases, ANSYS load steps)
 SUBCASE_FORMATS = NASTRAN_RESULTS + ("ansys-rst", "calculix-frd")
 #: Number of leading bytes handed to the sniffing functions.
@@ -46,7 +46,8 @@ HOW_RECOGNISED = ("a universal file starts with a '    -1' line and a dataset nu
                   "(NASTRAN, ASSIGN, SOL, CEND, ...) or bulk entries (BEGIN BULK, PARAM, CORD2R, GRID, ...; a "
                   ".bdf/.dat/.nas/.blk file with a GRID card in its first 4 kB); an ANSYS result file (.rst) by its "
                   "binary standard header (file number 12); a CalculiX result file (.frd) by its '    1C' opening "
-                  "record; a Nastran OP2 file by its 'NASTRAN FORT TAPE ID CODE' header record.")
+                  "record; a Nastran OP2 file by its 'NASTRAN FORT TAPE ID CODE' header record; an MSC Nastran HDF5 "
+                  "file by the HDF5 signature and a NASTRAN group (or the .h5 name).")
 
 
 @dataclass(frozen=True, eq=False)
@@ -124,7 +125,7 @@ def _load_builtins() -> None:
     if not _BUILTINS_LOADED:
         _BUILTINS_LOADED = True
         # they register themselves, in this order
-        from . import uff, punch, nastran_bulk, ansys_rst, calculix_frd, nastran_op2  # noqa: F401
+        from . import uff, punch, nastran_bulk, ansys_rst, calculix_frd, nastran_op2, nastran_h5  # noqa: F401
 
 
 def register_format(name: str, *, patterns, sniff, reader, geometry=None, description: str = "",

@@ -236,7 +236,8 @@ def add_geometry_argument(parser) -> None:
                              ".f06): a UFF with datasets 2411/2412 or a Nastran bulk data file (default: a companion "
                              "file of the same name, .bdf/.dat/.nas/.uff)")
     parser.add_argument("--fe-units", default=None, choices=tuple(UNIT_SYSTEMS),
-                        help="unit system of an FE export that does not state it (a Nastran punch, .f06 or .op2 and "
-                             "bulk deck, a UFF without dataset 164, a CalculiX .frd, an ANSYS .rst without /UNITS whose "
-                             "materials do not tell), converted to SI: e.g. mm-t-s, the usual Nastran set for steel "
-                             "(default: SI as read; a UFF with dataset 164 and an ANSYS /UNITS are converted by them)")
+                        help="unit system of an FE export that does not state it (a Nastran punch, .f06, .op2 or .h5 "
+                             "and bulk deck, a UFF without dataset 164, a CalculiX .frd, an ANSYS .rst without /UNITS "
+                             "whose materials do not tell), converted to SI: e.g. mm-t-s, the usual Nastran set for "
+                             "steel (default: SI as read; a UFF with dataset 164 and an ANSYS /UNITS are converted by "
+                             "them)")

@@ -420,8 +420,8 @@ def build_parser() -> argparse.ArgumentParser:
                       type=existing_folder("--modes", "modes (written by 'lab identify')"),
                       help="modes folder written by 'lab identify' (repeat for several setups: they are merged)")
     pair.add_argument("--fem", required=True, type=existing_file("--fem", "FE modes"),
-                      help="FE modes file (UFF 2411/2412 with 55 or 2414, Nastran .pch, .f06 or .op2, an "
-                           "ANSYS modal .rst or a CalculiX .frd)")
+                      help="FE modes file (UFF 2411/2412 with 55 or 2414, Nastran .pch, .f06 or .op2, an MSC "
+                           "Nastran .h5, an ANSYS modal .rst or a CalculiX .frd)")
     add_geometry_argument(pair)
     pair.add_argument("--mac-min", type=bounded_float("--mac-min", 0.0, 1.0, lo_open=True), default=0.8,
                       help="smallest MAC of a pair, in (0, 1] (default 0.8)")

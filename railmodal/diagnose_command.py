@@ -139,8 +139,8 @@ def add_diagnose_parser(lab_subparsers) -> argparse.ArgumentParser:
     d.add_argument("--channels", action="append", type=existing_file("--channels", "channel table"),
                    help="channel table CSV of the preceding --hammer or --frf file")
     d.add_argument("--fem", required=True, type=existing_file("--fem", "FE modes"),
-                   help="FE modes file (UFF 2411/2412 with 55 or 2414, Nastran .pch, .f06 or .op2, an ANSYS .rst "
-                        "or a CalculiX .frd)")
+                   help="FE modes file (UFF 2411/2412 with 55 or 2414, Nastran .pch, .f06, .op2 or .h5, an ANSYS "
+                        ".rst or a CalculiX .frd)")
     add_geometry_argument(d)
     d.add_argument("--total-mass", type=bounded_float("--total-mass", 0.0, 1e6, lo_open=True, unit="kg"),
                    default=None, help="the exported wheelset's mass [kg] to check the FE shapes' mass normalisation "

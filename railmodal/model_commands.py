@@ -304,7 +304,7 @@ def add_model_commands(sub) -> None:
                    help="folder (or CSV) written by 'railmodal lab pair'")
     b.add_argument("--fem", required=True, type=existing_file("--fem", "FE modes"),
                    help="the FE modes file the pairing used (UFF 2411/2412 with 55 or 2414, Nastran .pch, "
-                        ".f06 or .op2, an ANSYS .rst or a CalculiX .frd)")
+                        ".f06, .op2 or .h5, an ANSYS .rst or a CalculiX .frd)")
     add_geometry_argument(b)
     b.add_argument("--points", required=True, type=existing_file("--points", "points table"),
                    help="points table CSV: name, fe_node, x, y, z (contact_L, axlebox_L...)")
