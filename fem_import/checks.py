@@ -526,14 +526,23 @@ def check_mode_values(fe, *, source: str | None = None) -> None:
     Raises
     ------
     FEReadError
-        A translation above :data:`MAX_MASS_NORMALISED_TRANSLATION` (names
-        the mode, node, DOF and value), or two modes at the same frequency with
-        parallel shapes (names both).
+        A non-finite frequency or shape value, a translation above
+        :data:`MAX_MASS_NORMALISED_TRANSLATION` (names the mode, node, DOF and
+        value), or two modes at the same frequency with parallel shapes (names
+        both).
     """
     src = source or fe.source or "FE modes"
     shapes = np.asarray(fe.shapes, float)
     if shapes.size == 0:
         return
+    bad = np.flatnonzero(~np.isfinite(np.asarray(fe.freqs_hz, float)))
+    if bad.size:
+        raise FEReadError(src, f"mode {_number(fe, int(bad[0]))} has the frequency {fe.freqs_hz[bad[0]]!r}: a "
+                               f"damaged eigenvalue")
+    if not np.all(np.isfinite(shapes)):
+        k, i, d = np.argwhere(~np.isfinite(shapes))[0]
+        raise FEReadError(src, f"mode {_number(fe, int(k))} has the value {shapes[k, i, d]!r} at node "
+                               f"{int(fe.node_ids[i])} (DOF {d + 1}): a damaged shape")
     tr = np.abs(shapes[:, :, :3])
     k, i, d = np.unravel_index(int(np.argmax(tr)), tr.shape)
     if tr[k, i, d] > MAX_MASS_NORMALISED_TRANSLATION:

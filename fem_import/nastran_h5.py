@@ -159,6 +159,10 @@ def _geometry(path: str, f, ids: np.ndarray):
         raise FEReadError(path, f"{len(absent)} grid(s) of the eigenvectors are not in /NASTRAN/INPUT/NODE/GRID, "
                                 f"first {absent[:10]}")
     xyz = np.array([positions[n] for n in ids.tolist()])
+    bad = ~np.all(np.isfinite(xyz), axis=1)
+    if np.any(bad):
+        raise FEReadError(path, f"grid {ids[bad][0]} has non-finite coordinates {xyz[bad][0].tolist()}",
+                          dataset="NASTRAN/INPUT/NODE/GRID")
     frames = np.repeat(np.eye(3)[None], ids.size, axis=0)
     for k, n in enumerate(ids.tolist()):
         if cd[n]:

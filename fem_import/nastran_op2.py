@@ -229,7 +229,14 @@ def _grid_geometry(path: str, post: dict, ids: np.ndarray):
         raise FEReadError(path, f"{len(absent)} grid(s) of the eigenvectors are not in the grid table (BGPDT), first "
                                 f"{absent[:10]}")
     rows = np.array([first[n] for n in ids.tolist()])
+    if rows.max() + 1 >= dof.size or np.any(dof[rows + 1] != 2) or np.any(node[rows + 1] != ids):
+        raise FEReadError(path, "the grid table (USET from BGPDT/EQEXIN) does not list each grid's DOF 1 and 2 "
+                                "together: the file is damaged")
     xyz = values[rows]
+    bad = ~np.all(np.isfinite(xyz), axis=1)
+    if np.any(bad):
+        raise FEReadError(path, f"grid {ids[bad][0]} has non-finite coordinates {xyz[bad][0].tolist()} in the grid "
+                                f"table (BGPDT): the file is damaged")
     cd = values[rows + 1, 0].astype(int)
     cstm = post.get("cstm2") or {}
     systems: dict[int, CoordSystem] = {}

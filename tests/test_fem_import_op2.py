@@ -452,3 +452,10 @@ def test_big_endian_and_64_bit_files(tmp_path, endian, word):
     tol = 1e-6 if word == 4 else 1e-12
     np.testing.assert_allclose(got.shapes, fe.shapes[:9], rtol=tol, atol=tol * np.abs(fe.shapes).max())
     np.testing.assert_allclose(got.freqs_hz[6:], fe.freqs_hz[6:9], rtol=tol)
+
+
+def test_a_damaged_eigenvalue_is_refused(tmp_path):
+    modes = _modes(_design())[:8]
+    modes[7] = (modes[7][0], float("nan"), modes[7][2], modes[7][3])
+    with pytest.raises(FEReadError, match="mode 8 has the frequency nan"):
+        fem_import.read(write_op2(tmp_path / "nan.op2", modes, lama=False))
