@@ -106,10 +106,10 @@ def _modes(path: str, f) -> tuple[list[ParsedMode], dict]:
     vec = _table(path, f, _VECTOR, ("ID", "X", "Y", "Z", "RX", "RY", "RZ", "DOMAIN_ID"))
     domains = _table(path, f, "NASTRAN/RESULT/DOMAINS", ("ID", "SUBCASE", "TIME_FREQ_EIGR", "MODE"))
     info = {int(r["ID"]): r for r in domains}
-    grid_ids = set(_table(path, f, "NASTRAN/INPUT/NODE/GRID", ("ID",))["ID"].tolist())
+    grid_ids = np.asarray(_table(path, f, "NASTRAN/INPUT/NODE/GRID", ("ID",))["ID"], np.int64)
     values = np.column_stack([np.asarray(vec[c], float) for c in ("X", "Y", "Z", "RX", "RY", "RZ")])
     ids = np.asarray(vec["ID"], np.int64)
-    is_grid = np.array([i in grid_ids for i in ids.tolist()])
+    is_grid = np.isin(ids, grid_ids)
     modes = []
     for d, rows in _domain_rows(path, f, vec):
         if d not in info:
