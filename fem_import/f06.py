@@ -116,7 +116,7 @@ def _parse(path: str, lines: list[str]):
             raise FEReadError(path, "complex eigenvectors are not supported; expected R E A L   E I G E N V E C T O R "
                               "tables (SOL 103)", line=line_no)
         if _TABLE.search(text):
-            in_table, rows, current = True, 0, None
+            in_table, rows, current, augmented = True, 0, None, False
             continue
         if in_table and "AFTER AUGMENTATION" in text.upper():
             augmented = True  # this table's rows replace those printed before the residual vectors were added

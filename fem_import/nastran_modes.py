@@ -1,4 +1,4 @@
-"""What the Nastran result readers (punch, print file, OP2) share: one parsed mode, choosing a subcase, and one
+"""What the Nastran result readers (punch, print file, OP2, HDF5) share: one parsed mode, choosing a subcase, and one
 shapes array from per-mode grid lists.
 
 A parsed mode (:class:`ParsedMode`, or any object with the same attributes) has ``number``, ``eigenvalue``
