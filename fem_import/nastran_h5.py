@@ -262,7 +262,7 @@ def read_nastran_h5(path: str, *, subcase: int | str | None = None, echo: bool =
             geometry = _geometry(path, f, ref_ids) if echo else None
     except FEReadError:
         raise
-    except (OSError, KeyError, ValueError, TypeError, RuntimeError) as exc:  # h5py on a damaged object
+    except (OSError, KeyError, IndexError, ValueError, TypeError, RuntimeError) as exc:  # h5py, a damaged object
         raise FEReadError(path, f"the HDF5 tables cannot be read ({type(exc).__name__}: {exc})") from None
     chosen = modes[0].subcase
     history = [f"read {len(modes)} modes ({numbers[0]}..{numbers[-1]}, subcase {chosen}) on {ref_ids.size} grids "
