@@ -18,7 +18,12 @@ A continuation line starts with ``+`` or ``*``, or has a blank name field
 (columns 1-8); it adds its data fields to the entry above it (continuations
 are taken in file order: the entry's continuation field is not matched).
 Comments (``$`` to the end of the line) and blank lines are skipped; tabs in
-fixed-field lines are expanded to 8 columns.
+fixed-field lines are expanded to 8 columns. Replicated entries, as hand-written
+decks generate grids and elements, are expanded (Quick Reference Guide, bulk
+data replication): field 1 ``=`` repeats the entry above with ``=`` fields
+copied, ``==`` copying all trailing fields (continuations included) and
+``*x`` / ``*(x)`` fields incremented by ``x``; ``=n`` / ``=(n)`` generates
+``n`` more images with the same increments.
 
 Elements are returned as :class:`~fem_import.modes.Element` with the
 UFF 2412 FE descriptor of the same element kind, so that an FE read as a
@@ -208,10 +213,64 @@ def _line_fields(body: str, large: bool) -> list[str]:
     return [body[k:k + 8].strip() for k in range(8, 72, 8)]
 
 
-def _entries(lines: list[str], start: int):
-    """``(name, data fields, 1-based line, number of lines)`` of every bulk entry from line ``start`` on."""
+_REPEAT = re.compile(r"^=\(?(\d+)\)?$")      # =n or =(n) in field 1: n more images
+_INCREMENT = re.compile(r"^\*\(?([^()]+)\)?$")  # *x or *(x) in a data field of a replicated entry
+
+
+def _is_int_text(t: str) -> bool:
+    return re.fullmatch(r"[+-]?\d+", t.strip()) is not None
+
+
+def _incremented(path: str, line: int, k: int, before: str, token: str) -> str:
+    """Field ``k`` of the preceding entry, ``before``, incremented by the ``*x`` of ``token``."""
+    step = _INCREMENT.match(token).group(1).strip()
+    if not before.strip():  # a blank field has a default, not a value to add to
+        raise FEReadError(path, f"replicated entry: {_field(k)} increments a blank field of the entry above by "
+                          f"{token!r}", line=line)
+    if _is_int_text(before) and _is_int_text(step):
+        return str(int(before) + int(step))
+    try:
+        return repr(parse_nastran_real(before) + parse_nastran_real(step))
+    except ValueError:
+        raise FEReadError(path, f"replicated entry: {_field(k)} increments {before.strip()!r} "
+                          f"of the entry above by {token!r}: both must be numbers", line=line) from None
+
+
+def _replicated(path: str, line: int, before: list[str], tokens: list[str]) -> list[str]:
+    """The data fields of a replicated entry: ``tokens`` applied to the preceding entry's fields ``before``.
+
+    Nastran Quick Reference Guide, bulk data replication: ``=`` copies the
+    field of the preceding entry, ``==`` copies all its trailing fields
+    (continuations included), ``*x`` or ``*(x)`` adds ``x`` to it (integer to
+    integer, real otherwise); a blank field stays blank and any other text is
+    a value of its own.
+    """
+    out: list[str] = []
+    for k, t in enumerate(tokens):
+        t = t.strip()
+        if t == "==":
+            return out + before[k:]
+        if t == "=":
+            out.append(before[k] if k < len(before) else "")
+        elif _INCREMENT.match(t):
+            out.append(_incremented(path, line, k, before[k] if k < len(before) else "", t))
+        else:
+            out.append(t)
+    return out
+
+
+def _entries(path: str, lines: list[str], start: int):
+    """``(name, data fields, 1-based line, number of lines)`` of every bulk entry from line ``start`` on.
+
+    Replicated entries (field 1 ``=``, with ``=``, ``==`` and ``*x`` fields)
+    are expanded against the entry above them, and ``=n`` / ``=(n)`` yields
+    ``n`` more images with the same replication (:func:`_replicated`); each
+    image reports the line of the statement that made it.
+    """
     n = len(lines)
     i = start
+    previous: tuple[str, list[str]] | None = None  # the entry above (name, fields), after expansion
+    pattern: list[str] | None = None              # the replication fields that made it, for =n
     while i < n:
         body = _body(lines[i])
         if not body.strip():
@@ -238,6 +297,22 @@ def _entries(lines: list[str], start: int):
             fields += _line_fields(nxt, nxt[:1] == "*")
             count += 1
             i += 1
+        repeat = _REPEAT.match(name)
+        if name == "=" or repeat:
+            if previous is None or (repeat and pattern is None):
+                what = "=n (repeat the replication above)" if repeat else "a replicated entry (=)"
+                raise FEReadError(path, f"{what} without {'a replicated' if repeat else 'an'} entry above it",
+                                  line=line_no)
+            if name == "=":
+                pattern = fields
+                images = 1
+            else:
+                images = int(repeat.group(1))
+            for _ in range(images):
+                previous = (previous[0], _replicated(path, line_no, previous[1], pattern))
+                yield previous[0], previous[1], line_no, count
+            continue
+        previous, pattern = (name, fields), None
         yield name, fields, line_no, count
         if name == "ENDDATA":
             return
@@ -609,7 +684,7 @@ def bulk_geometry(path: str, lines: list[str], start: int = 0) -> Geometry:
     includes: list[str] = []
     skipped: dict[str, int] = {}
     orphans: list[int] = []
-    for name, fields, line_no, count in _entries(lines, start):
+    for name, fields, line_no, count in _entries(path, lines, start):
         if not name:
             orphans.append(line_no)
             continue
