@@ -563,6 +563,9 @@ CARD_DESCRIPTORS = {
     "CELAS1": (136, 137, 138, 139), "CELAS2": (136, 137, 138, 139), "CBUSH": (136, 138), "RBAR": (121,),
     "RBE2": (122,), "RBE3": (181,),
 }
+# rigid elements: Nastran's GEOM4 table, an id space apart from the elements
+_RIGID = {"RBAR", "RBE2", "RBE3"}
+_RIGID_DESCRIPTORS = {d for card in _RIGID for d in CARD_DESCRIPTORS[card]}
 # cards whose "grids" may be scalar points (no GRID): skipped, not refused
 _SCALAR_OK = {"CELAS1", "CELAS2"}
 
@@ -659,7 +662,8 @@ def read_bulk_geometry(path: str) -> Geometry:
     ------
     FEReadError
         No GRID entry, a field that is not a number, a repeated grid or
-        element id, a coordinate system undefined, defined twice or degenerate
+        element id (a rigid element that shares a structural element's id is
+        renumbered instead, logged), a coordinate system undefined, defined twice or degenerate
         (names the grid or system), a large-field GRID* without its continuation, an element that
         lists a grid twice or uses a grid no GRID defines; names the line.
     """
@@ -760,20 +764,31 @@ def bulk_geometry(path: str, lines: list[str], start: int = 0) -> Geometry:
 
 
 def _check_elements(path, raw, grids: dict[int, int], has_includes: bool) -> list[Element]:
-    """Validated elements: unique ids, positive distinct grids that GRID entries define."""
+    """Validated elements: unique ids, positive distinct grids that GRID entries define.
+
+    Rigid elements (RBAR, RBE2, RBE3) are kept by Nastran in a table of their
+    own (GEOM4, not GEOM2), and NX Nastran runs decks whose rigid element
+    shares its id with a structural element; the mesh needs one id per
+    element, so such a rigid element is renumbered above the largest element
+    id (logged with the numbers). Two structural or two rigid elements with
+    one id are refused.
+    """
     out: list[Element] = []
     where: dict[int, tuple[str, int]] = {}
+    where_rigid: dict[int, tuple[str, int]] = {}
     scalar: dict[str, int] = {}
     dropped = []
     for eid, desc, nodes, pid, name, line in raw:
         if eid <= 0 or any(g <= 0 for g in nodes):
             raise FEReadError(path, f"{name} {eid}: element and grid ids must be positive, got element {eid}, "
                               f"grids {list(nodes)}", line=line)
-        if eid in where:
-            first = where[eid]
+        table = where_rigid if name in _RIGID else where
+        if eid in table:
+            first = table[eid]
+            kind = "rigid element" if name in _RIGID else "element (masses and springs included)"
             raise FEReadError(path, f"element id {eid} is used twice ({first[0]} at line {first[1]}, {name} here); "
-                              f"element ids (RBEs and masses included) are unique in a Nastran model", line=line)
-        where[eid] = (name, line)
+                              f"{kind} ids are unique in a Nastran model", line=line)
+        table[eid] = (name, line)
         twice = sorted({g for g in nodes if nodes.count(g) > 1})
         if twice:
             raise FEReadError(path, f"{name} {eid} lists grid(s) {twice} more than once: an element's grids are "
@@ -789,6 +804,7 @@ def _check_elements(path, raw, grids: dict[int, int], has_includes: bool) -> lis
             raise FEReadError(path, f"{name} {eid} uses grid(s) {unknown[:10]} that no GRID entry defines",
                               line=line)
         out.append(Element(int(eid), int(desc), tuple(int(g) for g in nodes), int(pid)))
+    out = _renumber_shared_rigid(path, out, where, where_rigid)
     for name, n in sorted(scalar.items()):
         log.info("%s: %d %s element(s) on scalar points (ids no GRID defines) skipped: they have no place in the "
                  "mesh", path, n, name)
@@ -798,6 +814,22 @@ def _check_elements(path, raw, grids: dict[int, int], has_includes: bool) -> lis
                     "%s), perhaps defined in the INCLUDE files; they are left out", path, len(dropped), name, eid,
                     line, unknown[:5])
     out.sort(key=lambda e: e.element_id)
+    return out
+
+
+def _renumber_shared_rigid(path, elements: list[Element], where: dict, where_rigid: dict) -> list[Element]:
+    """``elements`` with each rigid element whose id a structural element also has given a fresh id."""
+    shared = sorted(set(where) & set(where_rigid))
+    if not shared:
+        return elements
+    top = max(max(where), max(where_rigid))
+    new_id = {eid: top + k for k, eid in enumerate(shared, start=1)}
+    out = [Element(new_id[e.element_id], e.fe_descriptor, e.nodes, e.physical_property)
+           if e.element_id in new_id and e.fe_descriptor in _RIGID_DESCRIPTORS else e for e in elements]
+    log.warning("%s: %d rigid element(s) share their id with a structural element (NX Nastran accepts it: rigid "
+                "elements have their own table); in the mesh they are renumbered above the largest element id: %s",
+                path, len(shared), ", ".join(f"{where_rigid[e][0]} {e} (line {where_rigid[e][1]}) -> {new_id[e]}"
+                                             for e in shared[:5]) + (" ..." if len(shared) > 5 else ""))
     return out
 
 

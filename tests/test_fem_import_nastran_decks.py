@@ -1,8 +1,14 @@
-"""Nastran bulk data replication (``=``, ``==``, ``*x``, ``=n``) in :mod:`fem_import.nastran_bulk`.
+"""Nastran input decks that NX Nastran ran, read by :mod:`fem_import.nastran_bulk`, against what Nastran made of them.
 
-Hand-written decks generate grids and elements with replication. The oracles are Nastran's own expansion of the
-same deck (the sorted bulk data echo of its print file, NX Nastran, pyYeti's test run ``with_se``) and the grid
-table (BGPDT) NX Nastran wrote to the OP2 file of a deck of 8222 replicated grids (``cant_beam``).
+The decks and Nastran's outputs are those pyYeti ships with its own tests. Oracles:
+
+* replication (``=``, ``==``, ``*x``, ``=n``), as hand-written decks generate grids and elements: Nastran's own
+  expansion in the sorted bulk data echo of the print file (``with_se``) and the grid table (BGPDT) it wrote to
+  the OP2 file of a deck of 8222 replicated grids (``cant_beam``);
+* coordinate systems: the basic positions and the displacement systems of the grids of nine decks whose grids sit
+  in chains of rectangular, cylindrical and spherical systems, from the USET and CSTM tables Nastran wrote
+  (``make_gm_nx9_*``, through pyYeti's DMAP), and their RBE3 elements against the sparsity of the GM matrix
+  Nastran formed from them (which grids the element ties).
 """
 
 from __future__ import annotations
@@ -10,8 +16,11 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
+import logging
+
 import numpy as np
 import pytest
+import scipy.io
 
 import fem_import
 from fem_import import f06
@@ -105,3 +114,69 @@ def test_replication_refusals_name_the_line(tmp_path):
     # an image that repeats an id is the duplicate Nastran would refuse, with both lines named
     with pytest.raises(FEReadError, match=r"GRID 1 is defined twice \(lines 2 and 3\)"):
         read_bulk_geometry(_deck(tmp_path, "GRID,1,,0.,0.,0.\n=,=,,*1.,==\n"))
+
+
+GM_DECKS = ["make_gm_nx9_rbe3_1", "make_gm_nx9_rbe3_2", "make_gm_nx9_rbe3_3", "make_gm_nx9_rbe3_4",
+            "make_gm_nx9_rbe3_um_1", "make_gm_nx9_rbe3_um_2", "make_gm_nx9_rbe3_um_3", "make_gm_nx9_rbe3_um_5",
+            "make_gm_nx9_rbe3_um_6"]
+
+
+def _local_axes(kind: int, p: np.ndarray) -> np.ndarray:
+    """Unit vectors (columns, in the system's own rectangular axes) of the local directions of a rectangular (1),
+    cylindrical (2: r, theta, z) or spherical (3: r, theta, phi) system at the point ``p`` of those axes."""
+    if kind == 1:
+        return np.eye(3)
+    phi = np.arctan2(p[1], p[0])
+    c, s = np.cos(phi), np.sin(phi)
+    if kind == 2:
+        return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    theta = np.arccos(p[2] / np.linalg.norm(p))
+    st, ct = np.sin(theta), np.cos(theta)
+    return np.column_stack([[st * c, st * s, ct], [ct * c, ct * s, -st], [-s, c, 0.0]])
+
+
+@pytest.mark.parametrize("name", GM_DECKS)
+def test_grids_in_chained_curvilinear_systems_sit_where_nastran_put_them(name, caplog):
+    """Grids given in (CP) and displaced in (CD) CORD2R/C/S systems defined in one another, four deep. Nastran's
+    USET has per grid its basic position, its CD system's kind, origin and axes; the displacement directions at the
+    grid are those axes turned to the grid's angles (a cylindrical or spherical system's directions follow the
+    point)."""
+    uset = scipy.io.loadmat(str(yeti_file(f"nastran_gm_data/{name}.mat")))["uset"][0][0][0]
+    with caplog.at_level(logging.WARNING, logger="fem_import"):
+        g = read_bulk_geometry(str(yeti_file(f"nastran_gm_data/{name}.dat")))
+    assert g.node_ids.size == 17 and g.displacement_frames is not None
+    kinds = set()
+    for k, gid in enumerate(g.node_ids):
+        rows = uset[uset[:, 0] == gid]  # dof 1: basic xyz; 2: CD, kind; 3: CD origin; 4-6: CD axes (basic)
+        assert rows.shape[0] == 6, gid
+        kind, origin, axes = int(rows[1, 4]), rows[2, 3:6], rows[3:6, 3:6]
+        kinds.add(kind)
+        np.testing.assert_allclose(g.xyz[k], rows[0, 3:6], rtol=0, atol=1e-12 * 1000.0, err_msg=f"GRID {gid}")
+        expected = axes @ _local_axes(kind, axes.T @ (rows[0, 3:6] - origin))
+        np.testing.assert_allclose(g.displacement_frames[k], expected, rtol=0, atol=1e-12, err_msg=f"GRID {gid}")
+    assert kinds == {1, 2, 3}
+    # the deck's RBE3 1 and CBAR 1 share an id, which NX Nastran ran: the rigid element is renumbered, logged
+    assert "RBE3 1 (line " in caplog.text and "renumbered" in caplog.text
+    assert sorted(e.element_id for e in g.elements) == list(range(1, 17))
+
+
+@pytest.mark.parametrize("name", GM_DECKS)
+def test_rbe3_ties_the_grids_of_nastrans_gm_matrix(name):
+    """The RBE3's reference grid, its weighted grids and (UM) dependent grids: every grid with a dependent DOF
+    (the m-set, bit 1 of USET) or an independent DOF GM weights."""
+    mat = scipy.io.loadmat(str(yeti_file(f"nastran_gm_data/{name}.mat")))
+    uset, gm = mat["uset"][0][0][0], mat["gm"][0][0][0]
+    grid_of = uset[:, 0].astype(int)
+    m_set = (uset[:, 2].astype(int) & 1) == 1
+    assert gm.shape == (m_set.sum(), (~m_set).sum())
+    tied = set(grid_of[m_set]) | set(grid_of[~m_set][np.any(gm != 0, axis=0)])
+    g = read_bulk_geometry(str(yeti_file(f"nastran_gm_data/{name}.dat")))
+    (rbe3,) = [e for e in g.elements if e.fe_descriptor == 181]
+    assert rbe3.nodes[0] == 124 and sorted(rbe3.nodes) == sorted(tied)
+
+
+def test_two_rigid_elements_with_one_id_are_refused(tmp_path):
+    text = "GRID,1,,0.,0.,0.\nGRID,2,,1.,0.,0.\nGRID,3,,2.,0.,0.\nRBE2,5,1,123456,2\nRBAR,5,2,3,123456\n"
+    with pytest.raises(FEReadError, match=r"line 6: element id 5 is used twice \(RBE2 at line 5, RBAR here\); "
+                                          r"rigid element ids are unique"):
+        read_bulk_geometry(_deck(tmp_path, text))
