@@ -42,6 +42,7 @@ from __future__ import annotations
 import logging
 import math
 import re
+from pathlib import Path
 
 import numpy as np
 
@@ -58,6 +59,7 @@ _VECTOR = re.compile(r"R E A L\s+E I G E N V E C T O R\s+N O \.\s+(\d+)")
 _COMPLEX = re.compile(r"C O M P L E X\s+E I G E N V E C T O R")
 _EIGENVALUE = re.compile(r"^\s*EIGENVALUE\s*=\s*(\S+)")
 _TABLE = re.compile(r"R E A L\s+E I G E N V A L U E S")
+_SUPERELEMENT = re.compile(r"^\s{20,}SUPERELEMENT\s+(\d+)\s*$")  # the page header of a superelement's output
 _SUBCASE = re.compile(r"SUBCASE\s+(\d+)\s*$")
 _SPACED = re.compile(r"(?:[A-Z] ){4,}[A-Z]")
 _ECHO_CARD = re.compile(r"^\s*\d+-")
@@ -65,9 +67,16 @@ _NUMBER = re.compile(r"^([+-]?(?:\d+\.?\d*|\.\d+))(?:[EeDd]?([+-]\d+))?$")
 
 
 def sniff_f06(head: bytes) -> bool:
-    """True for a Nastran print file: spaced-letter headings (``E X E C U T I V E``, ``R E A L``) and page numbers."""
+    """True for a Nastran print file: spaced-letter headings (``E X E C U T I V E``, ``R E A L``) and page numbers,
+    or the banner it opens with (a page eject ``1`` in column 1, then a copyright notice naming Nastran: NX
+    Nastran's banner fills the first 4.5 kB, before any heading)."""
     text = head.decode("latin-1")
-    return bool(_SPACED.search(text)) and bool(re.search(r"\bPAGE\s+\d+", text)) and "NASTRAN" in text.upper()
+    upper = text.upper()
+    if "NASTRAN" not in upper:
+        return False
+    if _SPACED.search(text) and re.search(r"\bPAGE\s+\d+", text):
+        return True
+    return text.split("\n", 1)[0].strip() == "1" and "COPYRIGHT" in upper
 
 
 def _echo(lines: list[str]) -> list[str] | None:
@@ -102,7 +111,7 @@ def _parse(path: str, lines: list[str]):
     subcase = None
     eigenvalue = None
     current: _Mode | None = None
-    in_table = augmented = False
+    in_table = augmented = listing = resvec_next = False
     rows = 0
     skipped: dict[str, int] = {}
     for i, raw in enumerate(lines):
@@ -112,11 +121,20 @@ def _parse(path: str, lines: list[str]):
         if m and (text.startswith("0") or text.lstrip().startswith("SUBCASE")):
             subcase = int(m.group(1))
             continue
+        m = _SUPERELEMENT.match(text)
+        if m and int(m.group(1)) != 0:
+            raise FEReadError(path, f"the print file of a superelement run (pages of SUPERELEMENT {m.group(1)}): each "
+                              f"superelement's modes and grids are printed apart, which this reader does not keep "
+                              f"apart; print the modes of a run without superelements", line=line_no)
+        if "FREQUENCY LIST OF RESIDUAL VECTORS" in text.upper():
+            resvec_next = True  # NX prints the residual vectors' own frequencies as an eigenvalue table: not modes
+            continue
         if _COMPLEX.search(text):
             raise FEReadError(path, "complex eigenvectors are not supported; expected R E A L   E I G E N V E C T O R "
                               "tables (SOL 103)", line=line_no)
         if _TABLE.search(text):
             in_table, rows, current, augmented = True, 0, None, False
+            listing, resvec_next = resvec_next, False
             continue
         if in_table and "AFTER AUGMENTATION" in text.upper():
             augmented = True  # this table's rows replace those printed before the residual vectors were added
@@ -154,11 +172,13 @@ def _parse(path: str, lines: list[str]):
             vals = [_number(t) for t in tokens]
             if len(tokens) == 7 and all(v is not None for v in vals) and tokens[0].isdigit() and tokens[1].isdigit():
                 key = (subcase, int(tokens[0]))
+                rows += 1
+                if listing:
+                    continue
                 if key in table and not augmented:
                     raise FEReadError(path, f"mode {tokens[0]} appears twice in the eigenvalue table of subcase "
                                       f"{subcase}", line=line_no)
                 table[key] = (vals[2], vals[5])
-                rows += 1
             elif tokens and rows:
                 in_table = False  # what follows the rows (a message, OUTPUT2's trailer numbers) is not the table
             continue
@@ -220,8 +240,10 @@ def read_f06(path: str, *, subcase: int | str | None = None, echo: bool = True) 
         lines = fh.read().split("\n")
     modes, table = _parse(path, lines)
     if not modes:
+        beside = [q.name for q in (Path(path).with_suffix(".op2"), Path(path).with_suffix(".h5")) if q.is_file()]
         raise FEReadError(path, "no real eigenvectors found (expected 'R E A L   E I G E N V E C T O R   N O .' "
-                          "tables: a SOL 103 run with DISPLACEMENT(PRINT) = ALL or VECTOR = ALL)")
+                          "tables: a SOL 103 run with DISPLACEMENT(PRINT) = ALL or VECTOR = ALL)"
+                          + (f"; the run's results file beside it may hold them: read {beside[0]}" if beside else ""))
     chosen_modes = select_subcase(path, modes, subcase, "print file")
     chosen = chosen_modes[0].subcase
     modes = sorted(chosen_modes, key=lambda m: m.number)

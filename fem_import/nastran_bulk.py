@@ -64,8 +64,11 @@ connectivity, not a drawing, uses. A blank property id takes the element id
 (Nastran's default). A spring (CELAS1, CELAS2) on a scalar point (an id that no
 GRID defines) has no place in the mesh and is skipped (logged); any other
 element on an undefined grid is refused, unless the deck has INCLUDE
-statements (not followed: a warning names them), whose grids may be the
-missing ones: those elements are dropped with a warning.
+statements whose files are not found (a warning names them), whose grids
+may be the missing ones: those elements are dropped with a warning. INCLUDE
+files that are found are read where the statement stands
+(:mod:`fem_import.nastran_include`); messages name their lines as
+``line 12 of mesh.bdf``.
 
 Other cards (properties, materials, loads, parameters,
 scalar elements...) are skipped with one INFO log per card type and count.
@@ -97,6 +100,7 @@ import numpy as np
 from .errors import FEReadError
 from .modes import Element, FEModes
 from .nastran_coords import resolve
+from .nastran_include import expand_includes
 from .registry import Geometry, register_format
 
 __all__ = ["read_bulk_geometry", "bulk_geometry", "sniff_bulk", "parse_nastran_real", "BULK_SUFFIXES",
@@ -125,6 +129,7 @@ _DECK_WORDS = (
 )
 _DECK_LINE = r"^(?:" + "|".join(sorted(_DECK_WORDS, key=len, reverse=True)) + r")\*?(?=$|[\s,=(*])"
 _BEGIN_BULK = re.compile(r"^\s*BEGIN\s+BULK\b", re.IGNORECASE)
+_BEGIN_SUPER = re.compile(r"^\s*BEGIN\s+(?:BULK\s+)?SUPER\b", re.IGNORECASE)
 _GRID_CARD = re.compile(rb"^(?:GRID\*?|BEGIN\s+BULK)(?=$|[\s,*])", re.IGNORECASE | re.MULTILINE)
 
 
@@ -259,13 +264,15 @@ def _replicated(path: str, line: int, before: list[str], tokens: list[str]) -> l
     return out
 
 
-def _entries(path: str, lines: list[str], start: int):
+def _entries(path: str, lines: list[str], start: int, where=None):
     """``(name, data fields, 1-based line, number of lines)`` of every bulk entry from line ``start`` on.
 
     Replicated entries (field 1 ``=``, with ``=``, ``==`` and ``*x`` fields)
     are expanded against the entry above them, and ``=n`` / ``=(n)`` yields
     ``n`` more images with the same replication (:func:`_replicated`); each
-    image reports the line of the statement that made it.
+    image reports the line of the statement that made it. ``where`` gives
+    per line the number to report (:class:`~fem_import.nastran_include.DeckLine`
+    of a deck with its INCLUDE files spliced in); default: its 1-based index.
     """
     n = len(lines)
     i = start
@@ -276,7 +283,7 @@ def _entries(path: str, lines: list[str], start: int):
         if not body.strip():
             i += 1
             continue
-        line_no = i + 1
+        line_no = i + 1 if where is None else where[i]
         i += 1
         if _is_continuation(body):
             yield "", [], line_no, 1  # a continuation without its entry (reported by the caller)
@@ -672,12 +679,14 @@ def read_bulk_geometry(path: str) -> Geometry:
     begin = next((k for k, ln in enumerate(lines) if _BEGIN_BULK.match(ln)), None)
     if begin is None:  # a bulk-only (include) file; executive and case control alone end with CEND
         begin = next((k for k, ln in enumerate(lines) if ln.strip().upper() == "CEND"), -1)
-    return bulk_geometry(path, lines, begin + 1)
+    lines, where, _ = expand_includes(path, lines, begin + 1)
+    return bulk_geometry(path, lines, begin + 1, where=where)
 
 
-def bulk_geometry(path: str, lines: list[str], start: int = 0) -> Geometry:
+def bulk_geometry(path: str, lines: list[str], start: int = 0, *, where=None) -> Geometry:
     """:func:`read_bulk_geometry` of bulk entries given as card images (``lines[start:]``; blank lines are
-    skipped, so a print file's echo can be passed at its own line numbers, the rest blanked)."""
+    skipped, so a print file's echo can be passed at its own line numbers, the rest blanked). ``where``: the
+    line numbers to report, per line (:func:`~fem_import.nastran_include.expand_includes`)."""
     ids: list[int] = []
     grids: dict[int, tuple] = {}  # id -> (CP, coordinates in CP, line)
     cds: dict[int, int] = {}  # id -> CD, where not basic
@@ -688,7 +697,7 @@ def bulk_geometry(path: str, lines: list[str], start: int = 0) -> Geometry:
     includes: list[str] = []
     skipped: dict[str, int] = {}
     orphans: list[int] = []
-    for name, fields, line_no, count in _entries(path, lines, start):
+    for name, fields, line_no, count in _entries(path, lines, start, where):
         if not name:
             orphans.append(line_no)
             continue
@@ -697,6 +706,12 @@ def bulk_geometry(path: str, lines: list[str], start: int = 0) -> Geometry:
         if name == "INCLUDE":
             includes.append(lines[line_no - 1].strip())
             continue
+        if name == "SEBULK" or (name.startswith("BEGIN") and _BEGIN_SUPER.match(lines[line_no - 1])):
+            statement = lines[line_no - 1].split("$", 1)[0].strip()
+            raise FEReadError(path, f"a superelement deck ({statement}): each part or external superelement has "
+                              f"grid and coordinate system ids of its own (and may be placed by SELOC), which this "
+                              f"reader does not keep apart; give the deck of one model (no BEGIN SUPER or SEBULK)",
+                              line=line_no)
         if name == "GRID":
             large = lines[line_no - 1].split(",", 1)[0].strip().endswith("*")
             if large and count < 2:
@@ -728,10 +743,10 @@ def bulk_geometry(path: str, lines: list[str], start: int = 0) -> Geometry:
             continue
         skipped[name] = skipped.get(name, 0) + 1
     if includes:
-        log.warning("%s: INCLUDE statements are not followed (%s); grids and elements in included files are not "
-                    "read", path, "; ".join(includes[:3]))
+        log.warning("%s: INCLUDE file(s) not found (%s), beside the deck or in the working directory; their grids "
+                    "and elements are not read", path, "; ".join(includes[:3]))
     if orphans:
-        log.warning("%s: %d continuation line(s) without an entry above them were skipped (first at line %d)",
+        log.warning("%s: %d continuation line(s) without an entry above them were skipped (first at line %s)",
                     path, len(orphans), orphans[0])
     for card, n in sorted(skipped.items()):
         log.info("%s: %d %s entr%s skipped (not grids or element connectivity)", path, n, card,
@@ -739,15 +754,21 @@ def bulk_geometry(path: str, lines: list[str], start: int = 0) -> Geometry:
     if not ids:
         raise FEReadError(path, "no GRID entry: the file carries no node coordinates")
     elements = _check_elements(path, raw_elements, seen, bool(includes))
-    systems, positions = resolve(path, cord2, cord1, grids)
+    try:
+        systems, positions = resolve(path, cord2, cord1, grids)
+    except FEReadError as exc:
+        if not includes:
+            raise
+        raise FEReadError(path, f"{str(exc).split(': ', 1)[-1]} (the INCLUDE files not found may define it)",
+                          line=exc.line) from None
     xyz = np.array([positions[g] for g in ids], float)
     frames = None
     if cds:
         undefined = sorted(g for g, cd in cds.items() if cd not in systems)
         if undefined:
             g = undefined[0]
-            raise FEReadError(path, f"GRID {g}: its displacement system CD = {cds[g]} is defined by no CORD entry",
-                              line=seen[g])
+            raise FEReadError(path, f"GRID {g}: its displacement system CD = {cds[g]} is defined by no CORD entry"
+                              + (" (the INCLUDE files not found may define it)" if includes else ""), line=seen[g])
         frames = np.broadcast_to(np.eye(3), (len(ids), 3, 3)).copy()
         for k, g in enumerate(ids):
             if g in cds:
@@ -810,7 +831,7 @@ def _check_elements(path, raw, grids: dict[int, int], has_includes: bool) -> lis
                  "mesh", path, n, name)
     if dropped:
         name, eid, unknown, line = dropped[0]
-        log.warning("%s: %d element(s) use grids no GRID entry of this file defines (first: %s %d at line %d, grids "
+        log.warning("%s: %d element(s) use grids no GRID entry of this file defines (first: %s %d at line %s, grids "
                     "%s), perhaps defined in the INCLUDE files; they are left out", path, len(dropped), name, eid,
                     line, unknown[:5])
     out.sort(key=lambda e: e.element_id)

@@ -1,4 +1,5 @@
-"""Nastran input decks that NX Nastran ran, read by :mod:`fem_import.nastran_bulk`, against what Nastran made of them.
+"""Nastran input decks that NX Nastran ran and print files it wrote, read by :mod:`fem_import`, against what Nastran
+made of them.
 
 The decks and Nastran's outputs are those pyYeti ships with its own tests. Oracles:
 
@@ -8,7 +9,10 @@ The decks and Nastran's outputs are those pyYeti ships with its own tests. Oracl
 * coordinate systems: the basic positions and the displacement systems of the grids of nine decks whose grids sit
   in chains of rectangular, cylindrical and spherical systems, from the USET and CSTM tables Nastran wrote
   (``make_gm_nx9_*``, through pyYeti's DMAP), and their RBE3 elements against the sparsity of the GM matrix
-  Nastran formed from them (which grids the element ties).
+  Nastran formed from them (which grids the element ties);
+* INCLUDE files: the sorted bulk data echo of the runs whose master deck includes its mesh;
+* print files: NX's banner fills the first 4.5 kB (no heading there to tell the file by); a run with residual
+  vectors prints their own frequencies as an eigenvalue table before the augmented one; a superelement run's pages.
 """
 
 from __future__ import annotations
@@ -180,3 +184,85 @@ def test_two_rigid_elements_with_one_id_are_refused(tmp_path):
     with pytest.raises(FEReadError, match=r"line 6: element id 5 is used twice \(RBE2 at line 5, RBAR here\); "
                                           r"rigid element ids are unique"):
         read_bulk_geometry(_deck(tmp_path, text))
+
+
+@pytest.mark.parametrize("name", ["nas2cam_extseout/outboard", "nas2cam_extseout/inboard"])
+def test_a_deck_that_includes_its_mesh_reads_as_nastrans_echo_of_it(name, tmp_path):
+    """outboard.dat: ``include 'outboard.blk'`` (grids, CORD2R 10, bars), then one grid displaced in system 10."""
+    for ext in (".dat", ".blk", ".out"):
+        shutil.copy(yeti_file(name + ext), tmp_path / Path(name).with_suffix(ext).name)
+    stem = Path(name).name
+    deck = read_bulk_geometry(str(tmp_path / f"{stem}.dat"))
+    out = tmp_path / f"{stem}.out"
+    echo = bulk_geometry(str(out), f06._echo(out.read_text(encoding="latin-1").split("\n")))
+    order, echo_order = np.argsort(deck.node_ids), np.argsort(echo.node_ids)
+    np.testing.assert_array_equal(deck.node_ids[order], echo.node_ids[echo_order])
+    np.testing.assert_array_equal(deck.xyz[order], echo.xyz[echo_order])
+    np.testing.assert_array_equal(deck.displacement_frames[order], echo.displacement_frames[echo_order])
+    assert deck.elements == echo.elements and len(deck.elements) > 50
+    # without the included file: its grids are missing, said so, and the system it defines is named as missing
+    (tmp_path / f"{stem}.blk").unlink()
+    if stem == "outboard":
+        with pytest.raises(FEReadError, match=r"line 37: GRID 60: its displacement system CD = 10 is defined by no "
+                                              r"CORD entry \(the INCLUDE files not found may define it\)"):
+            read_bulk_geometry(str(tmp_path / f"{stem}.dat"))
+
+
+def test_include_rules(tmp_path, caplog):
+    """A quoted name continued over lines, a nested include beside its includer, a name that differs in case, and
+    messages that name the included file's own line."""
+    sub = tmp_path / "mesh"
+    sub.mkdir()
+    (sub / "Grids.BDF").write_text("GRID,1,,0.,0.,0.\nGRID,2,,1.,0.,0.\n")
+    (sub / "bars.bdf").write_text("$ bars\nINCLUDE 'grids.bdf'\nCBAR,7,1,1,2,0.,0.,1.\n")
+    (tmp_path / "main.bdf").write_text("SOL 103\nCEND\nBEGIN BULK\nINCLUDE 'me\n   sh/bars.bdf'\n"
+                                       "GRID,3,,2.,0.,0.\nCBAR,8,1,2,3,0.,0.,1.\nENDDATA\n")
+    g = read_bulk_geometry(str(tmp_path / "main.bdf"))
+    assert g.node_ids.tolist() == [1, 2, 3] and [e.nodes for e in g.elements] == [(1, 2), (2, 3)]
+    (sub / "bars.bdf").write_text("$ bars\nINCLUDE 'grids.bdf'\nCBAR,7,1,1,2,0.,0.,1.\nGRID,2,,1.,0.,0.\n")
+    with pytest.raises(FEReadError, match=r"main\.bdf, line 4 of me\s*sh/bars\.bdf: GRID 2 is defined twice "
+                                          r"\(lines 2 of grids\.bdf and 4 of me\s*sh/bars\.bdf\)"):
+        read_bulk_geometry(str(tmp_path / "main.bdf"))
+    (sub / "Grids.BDF").write_text("INCLUDE '../main.bdf'\n")
+    with pytest.raises(FEReadError, match=r"includes a file that includes it: main\.bdf -> bars\.bdf -> Grids\.BDF "
+                                          r"-> main\.bdf"):
+        read_bulk_geometry(str(tmp_path / "main.bdf"))
+    (sub / "Grids.BDF").unlink()  # not found: the bar on its grids is left out, and the warning names the file
+    (sub / "bars.bdf").write_text("INCLUDE 'grids.bdf'\nCBAR,7,1,1,2,0.,0.,1.\n")
+    (tmp_path / "main.bdf").write_text("BEGIN BULK\nINCLUDE 'mesh/bars.bdf'\nGRID,3,,2.,0.,0.\nENDDATA\n")
+    with caplog.at_level(logging.WARNING, logger="fem_import"):
+        g = read_bulk_geometry(str(tmp_path / "main.bdf"))
+    assert g.node_ids.tolist() == [3] and g.elements == ()
+    assert "1 element(s) use grids no GRID entry of this file defines (first: CBAR 7 at line 2 of mesh/bars.bdf" \
+        in caplog.text
+    assert "INCLUDE file(s) not found (INCLUDE 'grids.bdf')" in caplog.text
+
+
+def test_an_nx_print_file_is_told_by_its_banner(tmp_path):
+    for ext in (".out", ".op2"):
+        shutil.copy(yeti_file(f"nas2cam_extseout/full{ext}"), tmp_path / f"full{ext}")
+    head = (tmp_path / "full.out").read_bytes()[:fem_import.registry.SNIFF_BYTES]
+    assert b"PAGE" not in head and b"E X E C" not in head  # NX's banner: no heading to tell the file by
+    assert fem_import.detect_format(tmp_path / "full.out").name == "nastran-f06"
+    with pytest.raises(FEReadError, match=r"full\.out: no real eigenvectors found .* the run's results file beside "
+                                          r"it may hold them: read full\.op2"):
+        fem_import.read(tmp_path / "full.out")
+
+
+def test_the_residual_vectors_frequency_list_is_no_eigenvalue_table():
+    """NX prints the residual vectors' frequencies (modes 1-9, here the vectors' own) between the eigenvalue tables
+    before and after augmentation; the modes are the augmented table's 12 rows, whose first three the OP2 has."""
+    out = yeti_file("nas2cam_extseout/inboard.out")
+    _, table = f06._parse(str(out), out.read_text(encoding="latin-1").split("\n"))
+    assert sorted(n for _, n in table) == list(range(1, 13))
+    assert table[(None, 1)] == (1.483160e03, 1.0) and table[(None, 4)] == (1.960809e05, 1.0)
+    assert table[(None, 12)] == (2.378353e07, 1.0)
+    fe = fem_import.read(yeti_file("nas2cam_extseout/inboard.op2"))
+    printed = np.sqrt([table[(None, n)][0] for n in (1, 2, 3)]) / (2 * np.pi)
+    np.testing.assert_allclose(fe.freqs_hz, printed, rtol=1e-6)
+
+
+def test_a_superelement_runs_print_file_is_refused():
+    with pytest.raises(FEReadError, match=r"with_se\.out, line 655: the print file of a superelement run \(pages of "
+                                          r"SUPERELEMENT 200\)"):
+        fem_import.read(yeti_file("nas2cam/with_se.out"))
