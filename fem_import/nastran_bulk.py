@@ -863,6 +863,10 @@ def _is_real(text: str) -> bool:
 
 
 def _no_modes(path: str, **kwargs) -> FEModes:
+    if PurePath(path).suffix.lower() in (".pch", ".punch"):  # EXTSEOUT and DMIG punches are bulk data entries
+        raise FEReadError(path, "this punch file holds bulk data entries (DMIG matrices, superelement data), no "
+                          "eigenvectors: a SOL 103 run punches them as '$EIGENVECTOR' blocks with DISPLACEMENT(PUNCH) "
+                          "= ALL")
     raise FEReadError(path, "a Nastran bulk data file holds no mode shapes; use it as the geometry of a punch file "
                       "(fem_import.read(punch, geometry=this file) in Python, --geometry on the command line)")
 

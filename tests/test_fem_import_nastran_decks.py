@@ -266,3 +266,9 @@ def test_a_superelement_runs_print_file_is_refused():
     with pytest.raises(FEReadError, match=r"with_se\.out, line 655: the print file of a superelement run \(pages of "
                                           r"SUPERELEMENT 200\)"):
         fem_import.read(yeti_file("nas2cam/with_se.out"))
+
+
+def test_a_punch_of_matrices_is_told_from_one_of_modes():
+    """EXTSEOUT's punch: DMIG entries of the reduced matrices, bulk data without a '$EIGENVECTOR' block."""
+    with pytest.raises(FEReadError, match=r"outboard\.pch: this punch file holds bulk data entries \(DMIG matrices"):
+        fem_import.read(yeti_file("nas2cam_extseout/outboard.pch"))
