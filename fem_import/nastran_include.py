@@ -9,7 +9,9 @@ relative name is looked up beside the including file, then beside the master
 deck, then in the working directory (Nastran resolves it against the
 directory it runs in, which is usually the deck's); on a case-sensitive file
 system a name that differs only in case from one file of that folder is
-taken as that file (decks written on Windows).
+taken as that file, and ``\\`` is read as ``/`` (decks written on Windows);
+an absolute name of another machine is looked for by its file name beside
+the including file, with a warning.
 
 An included file that is not found is left as the INCLUDE statement it was:
 the bulk data reader then says that its grids and elements are missing. A
@@ -70,10 +72,23 @@ def _statement(lines: list[str], i: int) -> tuple[str, int] | None:
     return text.split(quote, 1)[0].strip(), n
 
 
-def _locate(name: str, including: Path, master: Path) -> Path | None:
-    """The file an INCLUDE names, or None if none of the places it may be in has it."""
+def _candidates(name: str, including: Path, master: Path) -> list[Path]:
     raw = Path(os.path.expandvars(os.path.expanduser(name)))
-    places = [raw] if raw.is_absolute() else [including.parent / raw, master.parent / raw, Path.cwd() / raw]
+    if raw.is_absolute():
+        return [raw]
+    return [including.parent / raw, master.parent / raw, Path.cwd() / raw]
+
+
+def _locate(name: str, including: Path, master: Path) -> Path | None:
+    """The file an INCLUDE names, or None if none of the places it may be in has it.
+
+    A name written on Windows (``mesh\\bars.bdf``) is also tried with ``/``; an
+    absolute one from another machine (``C:\\models\\mesh.bdf``, ``/home/...``)
+    that does not exist here is looked for by its file name beside the
+    including file (the deck's folder copied as a whole), with a warning.
+    """
+    names = [name] + ([name.replace("\\", "/")] if "\\" in name else [])
+    places = [p for n in names for p in _candidates(n, including, master)]
     for p in places:
         if p.is_file():
             return p
@@ -83,6 +98,14 @@ def _locate(name: str, including: Path, master: Path) -> Path | None:
             match = [q for q in folder.iterdir() if q.name.lower() == p.name.lower() and q.is_file()]
             if len(match) == 1:
                 return match[0]
+    foreign = re.match(r"^[A-Za-z]:[\\/]", name) or Path(name).is_absolute()
+    if foreign:
+        base = re.split(r"[\\/]", name)[-1]
+        here = including.parent / base
+        if base and here.is_file():
+            log.warning("%s: INCLUDE '%s' does not exist here; %s, beside the including file, is read in its place",
+                        master, name, here)
+            return here
     return None
 
 

@@ -238,6 +238,19 @@ def test_include_rules(tmp_path, caplog):
     assert "INCLUDE file(s) not found (INCLUDE 'grids.bdf')" in caplog.text
 
 
+def test_include_names_written_on_another_machine(tmp_path, caplog):
+    (tmp_path / "mesh").mkdir()
+    (tmp_path / "mesh" / "grids.bdf").write_text("GRID,1,,0.,0.,0.\nGRID,2,,1.,0.,0.\n")
+    (tmp_path / "bars.bdf").write_text("CBAR,7,1,1,2,0.,0.,1.\n")
+    (tmp_path / "main.bdf").write_text("BEGIN BULK\nINCLUDE 'mesh\\grids.bdf'\n"
+                                       "INCLUDE 'C:\\Users\\lab\\wheelset\\bars.bdf'\nENDDATA\n")
+    with caplog.at_level(logging.WARNING, logger="fem_import"):
+        g = read_bulk_geometry(str(tmp_path / "main.bdf"))
+    assert g.node_ids.tolist() == [1, 2] and [e.nodes for e in g.elements] == [(1, 2)]
+    assert "INCLUDE 'C:\\Users\\lab\\wheelset\\bars.bdf' does not exist here" in caplog.text
+    assert "mesh\\grids.bdf" not in caplog.text  # a relative Windows name is simply found
+
+
 def test_an_nx_print_file_is_told_by_its_banner(tmp_path):
     for ext in (".out", ".op2"):
         shutil.copy(yeti_file(f"nas2cam_extseout/full{ext}"), tmp_path / f"full{ext}")
