@@ -75,7 +75,8 @@ scalar elements...) are skipped with one INFO log per card type and count.
 Real numbers may use Nastran's exponent shorthand (``7.85-3`` = 7.85e-3,
 ``1.+4``) and Fortran ``D`` exponents. Coordinate systems (CORD2R/C/S, CORD1R/C/S,
 :mod:`fem_import.nastran_coords`) place grids given in a ``CP`` system and
-give each grid with a ``CD`` system the rotation of its displacement
+give each grid with a ``CD`` system (its own, or GRDSET's where its field
+is blank) the rotation of its displacement
 components to basic (the punch's eigenvectors of that grid are in it;
 :func:`fem_import.merge_geometry` rotates them). A system left undefined
 is refused, naming the grid and line. Lines before ``BEGIN BULK`` (executive
@@ -588,8 +589,8 @@ def element_from_fields(path: str, name: str, fields: list[str], line: int) -> t
     return card.eid, desc, tuple(nodes), pid
 
 
-def _grid(path: str, fields: list[str], line: int) -> tuple[int, int, tuple[float, float, float], int]:
-    """``(id, CP, (X1, X2, X3) in CP, CD)`` of a GRID entry."""
+def _grid(path: str, fields: list[str], line: int) -> tuple[int, int | None, tuple[float, float, float], int | None]:
+    """``(id, CP, (X1, X2, X3) in CP, CD)`` of a GRID entry; a blank CP or CD is None (GRDSET's, else 0)."""
     f = fields + [""] * (6 - len(fields))
     try:
         gid = int(f[0].strip())
@@ -601,11 +602,11 @@ def _grid(path: str, fields: list[str], line: int) -> tuple[int, int, tuple[floa
     for what, text in (("CP", f[1]), ("CD", f[5])):
         t = text.strip()
         try:
-            cs.append(int(t) if t else 0)
+            cs.append(int(t) if t else None)
         except ValueError:
             raise FEReadError(path, f"GRID {gid}: coordinate system {what} = {t!r} is not an integer",
                               line=line) from None
-        if cs[-1] < 0:
+        if cs[-1] is not None and cs[-1] < 0:
             raise FEReadError(path, f"GRID {gid}: {what} = {cs[-1]} (a fluid or scalar grid has no place in a "
                                     f"structural wheelset model)", line=line)
     try:
@@ -616,6 +617,16 @@ def _grid(path: str, fields: list[str], line: int) -> tuple[int, int, tuple[floa
     if not all(np.isfinite(x)):
         raise FEReadError(path, f"GRID {gid}: non-finite coordinate {list(x)}", line=line)
     return gid, cs[0], x, cs[1]
+
+
+def _grdset(path: str, fields: list[str], line: int) -> tuple[int, int, object]:
+    """``(CP, CD, line)`` of the GRDSET entry: the defaults of blank GRID fields 3 (CP) and 7 (CD)."""
+    card = _Card(path, "GRDSET", fields, line)
+    cp = card.integer(1, "default CP", required=False) or 0
+    cd = card.integer(5, "default CD", required=False) or 0
+    if cp < 0 or cd < 0:
+        raise FEReadError(path, f"GRDSET: CP = {cp}, CD = {cd}: a coordinate system id is not negative", line=line)
+    return cp, cd, line
 
 
 def _cord2(path: str, name: str, fields: list[str], line: int) -> tuple[int, tuple]:
@@ -695,6 +706,8 @@ def bulk_geometry(path: str, lines: list[str], start: int = 0, *, where=None) ->
     seen: dict[int, int] = {}
     raw_elements: list[tuple[int, int, tuple[int, ...], int, str, int]] = []
     includes: list[str] = []
+    blank_cd: list[int] = []  # grids whose CD field is blank: GRDSET's CD, else basic
+    grdset: tuple[int, int, int] | None = None
     skipped: dict[str, int] = {}
     orphans: list[int] = []
     for name, fields, line_no, count in _entries(path, lines, start, where):
@@ -724,8 +737,16 @@ def bulk_geometry(path: str, lines: list[str], start: int = 0, *, where=None) ->
             seen[gid] = line_no
             ids.append(gid)
             grids[gid] = (cp, x, line_no)
-            if cd:
+            if cd is None:
+                blank_cd.append(gid)
+            elif cd:
                 cds[gid] = cd
+            continue
+        if name == "GRDSET":
+            if grdset is not None:
+                raise FEReadError(path, f"GRDSET is given twice (lines {grdset[2]} and {line_no}); Nastran allows one",
+                                  line=line_no)
+            grdset = _grdset(path, fields, line_no)
             continue
         if name in ("CORD2R", "CORD2C", "CORD2S", "CORD1R", "CORD1C", "CORD1S"):
             for cid, spec in ([_cord2(path, name, fields, line_no)] if name.startswith("CORD2")
@@ -753,6 +774,15 @@ def bulk_geometry(path: str, lines: list[str], start: int = 0, *, where=None) ->
                  "y" if n == 1 else "ies")
     if not ids:
         raise FEReadError(path, "no GRID entry: the file carries no node coordinates")
+    cp_default, cd_default = (grdset[0], grdset[1]) if grdset else (0, 0)
+    for gid, (cp, x, line) in grids.items():
+        if cp is None:
+            grids[gid] = (cp_default, x, line)
+    if cd_default:
+        cds.update({gid: cd_default for gid in blank_cd})
+    if grdset and (cp_default or cd_default):
+        log.info("%s: GRDSET (line %s) gives the grids with a blank field CP = %d, CD = %d", path, grdset[2],
+                 cp_default, cd_default)
     elements = _check_elements(path, raw_elements, seen, bool(includes))
     try:
         systems, positions = resolve(path, cord2, cord1, grids)

@@ -285,3 +285,19 @@ def test_a_punch_of_matrices_is_told_from_one_of_modes():
     """EXTSEOUT's punch: DMIG entries of the reduced matrices, bulk data without a '$EIGENVECTOR' block."""
     with pytest.raises(FEReadError, match=r"outboard\.pch: this punch file holds bulk data entries \(DMIG matrices"):
         fem_import.read(yeti_file("nas2cam_extseout/outboard.pch"))
+
+
+def test_grdset_gives_the_blank_cp_and_cd_of_every_grid(tmp_path):
+    """GRDSET fields 3 and 7 are the CP and CD of the GRIDs that leave theirs blank; an explicit 0 stays basic.
+    Oracle: the same deck with the systems written on each grid."""
+    cord = "CORD2C,2,,1.,0.,0.,1.,0.,1.\n,2.,0.,0.\n"
+    explicit = cord + "GRID,1,2,1.,0.,0.,2\nGRID,2,2,1.,90.,0.5,2\nGRID,3,0,1.,0.,0.,0\n"
+    blank = cord + "GRID,1,,1.,0.,0.\nGRID,2,,1.,90.,0.5\nGRID,3,0,1.,0.,0.,0\nGRDSET,,2,,,,2\n"  # GRDSET last
+    a = read_bulk_geometry(_deck(tmp_path, explicit))
+    (tmp_path / "model.bdf").rename(tmp_path / "explicit.bdf")
+    b = read_bulk_geometry(_deck(tmp_path, blank))
+    np.testing.assert_array_equal(a.xyz, b.xyz)
+    np.testing.assert_array_equal(a.displacement_frames, b.displacement_frames)
+    np.testing.assert_allclose(b.xyz, [[2.0, 0.0, 0.0], [1.0, 1.0, 0.5], [1.0, 0.0, 0.0]], atol=1e-15)
+    with pytest.raises(FEReadError, match=r"GRDSET is given twice \(lines 2 and 3\)"):
+        read_bulk_geometry(_deck(tmp_path, "GRDSET,,2\nGRDSET,,,,,,2\n" + explicit))
