@@ -20,6 +20,7 @@ file that includes itself, directly or through others, is refused.
 
 from __future__ import annotations
 
+import bisect
 import logging
 import os
 import re
@@ -27,11 +28,12 @@ from pathlib import Path
 
 from .errors import FEReadError
 
-__all__ = ["DeckLine", "expand_includes"]
+__all__ = ["DeckLine", "DeckLines", "expand_includes"]
 
 log = logging.getLogger("fem_import")
 
 _INCLUDE = re.compile(r"^INCLUDE(?=$|[\s'\"])", re.IGNORECASE)
+_INCLUDE_LINE = re.compile(r"^[ \t]*INCLUDE(?=$|[\s'\"])", re.IGNORECASE | re.MULTILINE)
 #: Nesting deeper than this is taken as a runaway (a cycle through differently written names).
 MAX_DEPTH = 32
 
@@ -109,15 +111,41 @@ def _locate(name: str, including: Path, master: Path) -> Path | None:
     return None
 
 
-def expand_includes(path, lines: list[str], start: int) -> tuple[list[str], list[DeckLine], list[Path]]:
+class DeckLines:
+    """Per line of a spliced deck, its :class:`DeckLine` (made when asked: a deck may have millions of lines)."""
+
+    def __init__(self, segments: list[tuple[int, str | None, int]]):
+        self._starts = [seg[0] for seg in segments]
+        self._segments = segments
+
+    def __getitem__(self, i: int) -> DeckLine:
+        k = bisect.bisect_right(self._starts, i) - 1
+        start, label, local = self._segments[k]
+        n = i - start + local + 1
+        return DeckLine(i + 1, str(n) if label is None else f"{n} of {label}")
+
+
+def _statement_lines(text: list[str], first: int) -> list[int]:
+    """Indices (from ``first`` on) of the lines that start an INCLUDE statement, found in one pass over the text."""
+    joined = "\n".join(text[first:])
+    found, line, pos = [], first, 0
+    for m in _INCLUDE_LINE.finditer(joined):
+        line += joined.count("\n", pos, m.start())
+        pos = m.start()
+        found.append(line)
+    return found
+
+
+def expand_includes(path, lines: list[str], start: int) -> tuple[list[str], DeckLines | None, list[Path]]:
     """The deck's lines with every INCLUDE statement from line ``start`` on replaced by the file it names.
 
     Returns
     -------
     lines : list of str
         The spliced lines; a followed INCLUDE statement's own lines are blank.
-    where : list of DeckLine
-        Per spliced line, its 1-based number there, printing as the line of its own file.
+    where : DeckLines or None
+        Per spliced line, its 1-based number there, printing as the line of its own file; None when the
+        deck has no INCLUDE statement (the lines are its own).
     included : list of Path
         The files read, in the order they were spliced in.
 
@@ -127,28 +155,28 @@ def expand_includes(path, lines: list[str], start: int) -> tuple[list[str], list
         A file includes itself (directly or through others), or one cannot be read.
     """
     master = Path(path)
+    if not _statement_lines(lines, start):
+        return lines, None, []
     out: list[str] = []
-    where: list[DeckLine] = []
+    segments: list[tuple[int, str | None, int]] = []  # (first spliced index, file label, its first local index)
     included: list[Path] = []
 
     def splice(file: Path, text: list[str], first: int, label: str | None, chain: tuple[Path, ...]) -> None:
-        def keep(k: int, line: str) -> None:
-            out.append(line)
-            where.append(DeckLine(len(out), str(k + 1) if label is None else f"{k + 1} of {label}"))
+        def keep(a: int, b: int, blank: bool = False) -> None:
+            if a < b:
+                segments.append((len(out), label, a))
+                out.extend([""] * (b - a) if blank else text[a:b])
 
-        i = 0
-        while i < len(text):
-            found = _statement(text, i) if i >= first else None
+        done = 0
+        for i in _statement_lines(text, first):
+            if i < done:  # a line inside the quoted name of the statement before
+                continue
+            found = _statement(text, i)
             if found is None:
-                keep(i, text[i])
-                i += 1
                 continue
             name, n = found
             target = _locate(name, file, master) if name else None
             if target is None:  # left as written: the reader warns that what it holds is missing
-                for k in range(i, i + n):
-                    keep(k, text[k])
-                i += n
                 continue
             resolved = target.resolve()
             here = str(i + 1) if label is None else f"{i + 1} of {label}"
@@ -159,13 +187,14 @@ def expand_includes(path, lines: list[str], start: int) -> tuple[list[str], list
                 body = target.read_text(encoding="latin-1").splitlines()
             except OSError as exc:
                 raise FEReadError(master, f"INCLUDE '{name}': {target} cannot be read ({exc})", line=here) from None
-            for k in range(i, i + n):
-                keep(k, "")
+            keep(done, i)
+            keep(i, i + n, blank=True)
             included.append(target)
             splice(target, body, 0, name, chain + (resolved,))
-            i += n
+            done = i + n
+        keep(done, len(text))
 
     splice(master, lines, start, None, (master.resolve(),))
     if included:
         log.info("%s: %d INCLUDE file(s) read: %s", master, len(included), ", ".join(p.name for p in included[:5]))
-    return out, where, included
+    return out, DeckLines(segments), included
