@@ -42,7 +42,8 @@ SNIFF_BYTES = 4096
 #: What the built-in formats are recognised by (for messages).
 HOW_RECOGNISED = ("a universal file starts with a '    -1' line and a dataset number; a Nastran punch file with a "
                   "header card such as '$TITLE' or '$EIGENVECTOR'; a Nastran print file (.f06) by its spaced-letter "
-                  "headings and page numbers; a Nastran bulk deck with executive or case control "
+                  "headings and page numbers, or the copyright banner it opens with; a Nastran bulk deck with "
+                  "executive or case control "
                   "(NASTRAN, ASSIGN, SOL, CEND, ...) or bulk entries (BEGIN BULK, PARAM, CORD2R, GRID, ...; a "
                   ".bdf/.dat/.nas/.blk file with a GRID card in its first 4 kB); an ANSYS result file (.rst) by its "
                   "binary standard header (file number 12); a CalculiX result file (.frd) by its '    1C' opening "
