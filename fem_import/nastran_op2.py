@@ -22,10 +22,11 @@ reader, pins numpy < 2 in its last release (1.4.1), which this toolkit does not 
 * **Geometry** (``PARAM,POST,-1`` writes it): each grid's basic coordinates and displacement system ``CD`` from
   the grid table, the systems' origins and axes from ``CSTM``. The eigenvectors are given in each grid's ``CD``
   system, as Nastran punches and prints them; they are turned to the basic axes at the grid
-  (:meth:`fem_import.nastran_coords.CoordSystem.frame_at`: rectangular, cylindrical, spherical). The OP2's
-  element tables are not read: the elements come from the run's input deck beside the file (same stem,
-  ``.dat``/``.bdf``/``.nas``/``.blk``), used only when its grids sit where the OP2 puts them (within
-  :data:`DECK_TOLERANCE` of the model's size), else said in a WARNING and the modes are used without elements.
+  (:meth:`fem_import.nastran_coords.CoordSystem.frame_at`: rectangular, cylindrical, spherical). The elements
+  come from the run's input deck beside the file (same stem, ``.dat``/``.bdf``/``.nas``/``.blk``), used only
+  when its grids sit where the OP2 puts them (within :data:`DECK_TOLERANCE` of the model's size, else said in a
+  WARNING); without such a deck, from the OP2's own GEOM2 and GEOM4 tables (:mod:`fem_import.nastran_op2_geom`:
+  bars, beams, rods, shells, solids, masses, springs, bushings, RBAR, RBE2, RBE3), else the modes have none.
   A file without the grid table (``PARAM,POST,-2`` without geometry, an ``OUTPUT2`` of the eigenvectors alone)
   takes coordinates, ``CD`` systems and elements from a companion deck or ``--geometry``, as a punch does.
 
@@ -51,6 +52,7 @@ from .errors import FEReadError
 from .modes import FEModes
 from .nastran_coords import CoordSystem
 from .nastran_modes import ParsedMode, frequencies, grid_shapes, select_subcase
+from .nastran_op2_geom import GEOM_TABLES, op2_elements
 from .registry import register_format
 
 __all__ = ["read_op2", "sniff_op2", "check_records", "DECK_TOLERANCE"]
@@ -256,6 +258,18 @@ def _grid_geometry(path: str, post: dict, ids: np.ndarray):
     return xyz, frames
 
 
+def _geom_records(o2) -> list[tuple[str, bytes]]:
+    """``(table, record)`` of every record of the file's GEOM2 and GEOM4 tables (:mod:`fem_import.nastran_op2_geom`)."""
+    out = []
+    for name in [n for n in o2.dbnames if n in GEOM_TABLES]:
+        for k in range(len(o2.dbnames[name])):
+            o2.set_position(name, k)
+            o2.rdop2nt()
+            while record := o2.rdop2record("bytes"):
+                out.append((name, record))
+    return out
+
+
 def _deck_elements(path: str, ids: np.ndarray, xyz: np.ndarray):
     """The elements of the companion deck, if its grids are where the grid table puts them (module docstring)."""
     from .registry import find_geometry_companion, read_geometry
@@ -324,6 +338,7 @@ def read_op2(path: str, *, subcase: int | str | None = None, echo: bool = True) 
             warnings.simplefilter("ignore")
             with yeti_op2.OP2(path) as o2:
                 parsed = _eigenvector_tables(o2, path, endian, word)
+                geom = _geom_records(o2) if parsed and echo else []
                 post = o2.rdparampost(get_mats=False, get_ougs=False, get_dr_tables=False, which="all") \
                     if parsed else {}
     except FEReadError:
@@ -379,6 +394,9 @@ def read_op2(path: str, *, subcase: int | str | None = None, echo: bool = True) 
     xyz, frames = geometry
     elements, deck = _deck_elements(path, ref_ids, xyz)
     source = f"{path} (grid table)" + (f" and {deck} (elements)" if deck is not None else "")
+    if deck is None and geom:
+        elements = op2_elements(path, geom, endian, word, ref_ids)
+        source += " and its GEOM tables (elements)" if elements else ""
     return merge_geometry(fe, Geometry(ref_ids, xyz, elements, source, fe.units, displacement_frames=frames))
 
 

@@ -115,26 +115,63 @@ def test_the_print_file_of_the_same_run_reads_its_eigenvalue_table(full_run):
     assert sorted(n for _, n in table) == list(range(1, 279))
 
 
-def test_elements_left_out_without_a_matching_deck(full_run, caplog):
+def test_without_a_matching_deck_the_elements_come_from_the_geom_tables(full_run, caplog):
+    """PARAM,POST,-1 writes GEOM2S (the 117 bars) and GEOM4S (the RBE2): read as the deck's cards of the same
+    name, they are the deck's 118 elements. A deck of another mesh is not used for them."""
     p = full_run / "full.op2"
     (full_run / "full.out").unlink()
-    deck = (full_run / "full.dat").read_text()
+    deck_text = (full_run / "full.dat").read_text()
+    deck = fem_import.read_geometry(full_run / "full.dat")
     (full_run / "full.dat").unlink()
     with caplog.at_level(logging.INFO, logger="fem_import"):
         alone = fem_import.read(p)
-    assert alone.has_coordinates and alone.elements == ()
-    assert "no input deck beside the file" in caplog.text
+    assert alone.has_coordinates and alone.elements == deck.elements and len(alone.elements) == 118
+    assert "no input deck beside the file" in caplog.text and "118 elements read from the OP2's GEOM" in caplog.text
+    assert "GEOM tables (elements)" in alone.history[-1]
     # a deck of another mesh: grid 1 moved by 1 % of the model's size
     size = float(np.linalg.norm(np.ptp(alone.xyz, axis=0)))
-    moved = deck.replace("GRID           1       0      0.      0.    300.",
-                         f"GRID           1       0{-0.01 * size:8.2f}      0.    300.")
-    assert moved != deck and 0.01 > DECK_TOLERANCE
+    moved = deck_text.replace("GRID           1       0      0.      0.    300.",
+                              f"GRID           1       0{-0.01 * size:8.2f}      0.    300.")
+    assert moved != deck_text and 0.01 > DECK_TOLERANCE
     (full_run / "full.dat").write_text(moved)
     caplog.clear()
     with caplog.at_level(logging.WARNING, logger="fem_import"):
         fe = fem_import.read(p)
-    assert fe.elements == () and "grid 1 sits" in caplog.text
+    assert "grid 1 sits" in caplog.text and fe.elements == deck.elements
     np.testing.assert_array_equal(fe.xyz, alone.xyz)
+
+
+@pytest.mark.parametrize("rel, deck_rel", [("nas2cam_extseout/cant_beam", "nas2cam_extseout/cant_beam"),
+                                            ("nas2cam_csuper/assemble", "nas2cam_csuper/assemble")])
+def test_geom_tables_give_the_decks_bars_and_rigid_elements(rel, deck_rel, tmp_path):
+    """8221 CBARs of NX's 16-word layout; RBE2 (three, one with one dependent component) and an RBE3 of GEOM4S."""
+    shutil.copy(yeti_file(rel + ".op2"), tmp_path / "alone.op2")
+    fe = fem_import.read(tmp_path / "alone.op2")
+    deck = fem_import.read_geometry(yeti_file(deck_rel + ".dat"))
+    assert fe.elements == deck.elements and len(fe.elements) in (8221, 4)
+
+
+def test_geom_tables_of_a_32_and_a_64_bit_file_agree():
+    """MSC Nastran 2020's files of one model in 32- and 64-bit words: CBEAM (18 words), CBUSH (14), CONM2 (13)."""
+    from pyyeti.nastran import op2 as yeti_op2
+
+    from fem_import.nastran_op2 import _geom_records
+    from fem_import.nastran_op2_geom import op2_elements
+
+    got = {}
+    for bits in (32, 64):
+        path = yeti_file(f"nastran_op2_data/tugd_2020_{bits}bit.op2")
+        endian, word = check_records(str(path))
+        with yeti_op2.OP2(str(path)) as o2:
+            records = _geom_records(o2)
+            uset = o2.rdparampost(get_mats=False, get_ougs=False, get_dr_tables=False)["uset"]
+        ids = np.unique(uset.index.get_level_values(0).to_numpy())
+        got[bits] = op2_elements(str(path), records, endian, word, ids)
+        assert word == bits // 8
+    assert got[32] == got[64]
+    kinds = pd.Series([e.fe_descriptor for e in got[64]]).value_counts().to_dict()
+    assert kinds == {161: 26, 21: 24, 136: 8}
+    assert all(len(e.nodes) == (1 if e.fe_descriptor == 161 else 2) for e in got[64])
 
 
 def test_a_given_geometry_replaces_the_grid_table(full_run):
