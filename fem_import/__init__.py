@@ -79,7 +79,8 @@ from .checks import (  # noqa: E402
 _logging.getLogger("fem_import").addHandler(_logging.NullHandler())
 
 __all__ = [
-    "read", "formats", "format_info", "register_format", "unregister_format", "detect_format", "read_geometry", "merge_geometry",
+    "read", "formats", "format_info", "register_format", "unregister_format", "detect_format", "read_geometry",
+    "merge_geometry",
     "FEModes", "Element", "Geometry", "FormatInfo", "DOF_NAMES", "shapes_at_channels",
     "FEImportError", "UnknownFormatError", "FEReadError", "FEGeometryError", "MissingCoordinatesError",
     "PointToleranceError", "read_with_geometry", "find_geometry_companion", "MassNormalisationError", "RigidBodyMass",
