@@ -27,8 +27,9 @@ reader, pins numpy < 2 in its last release (1.4.1), which this toolkit does not 
   when its grids sit where the OP2 puts them (within :data:`DECK_TOLERANCE` of the model's size, else said in a
   WARNING); without such a deck, from the OP2's own GEOM2 and GEOM4 tables (:mod:`fem_import.nastran_op2_geom`:
   bars, beams, rods, shells, solids, masses, springs, bushings, RBAR, RBE2, RBE3), else the modes have none.
-  A file without the grid table (``PARAM,POST,-2`` without geometry, an ``OUTPUT2`` of the eigenvectors alone)
-  takes coordinates, ``CD`` systems and elements from a companion deck or ``--geometry``, as a punch does.
+  A file without the grid table takes the grids of its ``GEOM1`` table (GRID and CORD2R/C/S records, resolved as
+  a deck's); one without either (an ``OUTPUT2`` of the eigenvectors alone) takes coordinates, ``CD`` systems and
+  elements from a companion deck or ``--geometry``, as a punch does.
 
 **Bad files.** The Fortran record structure is walked before the library sees the file
 (:func:`check_records`): a record whose length words disagree, a cut inside a record, or a file that does not end
@@ -52,7 +53,7 @@ from .errors import FEReadError
 from .modes import FEModes
 from .nastran_coords import CoordSystem
 from .nastran_modes import ParsedMode, frequencies, grid_shapes, select_subcase
-from .nastran_op2_geom import GEOM_TABLES, op2_elements
+from .nastran_op2_geom import GEOM_TABLES, op2_elements, op2_grids
 from .registry import register_format
 
 __all__ = ["read_op2", "sniff_op2", "check_records", "DECK_TOLERANCE"]
@@ -259,7 +260,8 @@ def _grid_geometry(path: str, post: dict, ids: np.ndarray):
 
 
 def _geom_records(o2) -> list[tuple[str, bytes]]:
-    """``(table, record)`` of every record of the file's GEOM2 and GEOM4 tables (:mod:`fem_import.nastran_op2_geom`)."""
+    """``(table, record)`` of every record of the file's GEOM1, GEOM2 and GEOM4 tables
+    (:mod:`fem_import.nastran_op2_geom`)."""
     out = []
     for name in [n for n in o2.dbnames if n in GEOM_TABLES]:
         for k in range(len(o2.dbnames[name])):
@@ -385,15 +387,18 @@ def read_op2(path: str, *, subcase: int | str | None = None, echo: bool = True) 
                  mode_numbers=np.asarray(numbers, np.int64))
     if not echo:
         return fe
-    geometry = _grid_geometry(path, post, ref_ids)
+    geometry, table = _grid_geometry(path, post, ref_ids), "grid table"
+    if geometry is None and geom:
+        geometry, table = op2_grids(path, geom, endian, word, ref_ids), "GEOM1 table"
     if geometry is None:
-        log.info("%s: no grid table (BGPDT) in the file: the coordinates must come from a companion deck", path)
+        log.info("%s: no grid table (BGPDT, GEOM1) in the file: the coordinates must come from a companion deck",
+                 path)
         return fe
     from .registry import Geometry, merge_geometry
 
     xyz, frames = geometry
     elements, deck = _deck_elements(path, ref_ids, xyz)
-    source = f"{path} (grid table)" + (f" and {deck} (elements)" if deck is not None else "")
+    source = f"{path} ({table})" + (f" and {deck} (elements)" if deck is not None else "")
     if deck is None and geom:
         elements = op2_elements(path, geom, endian, word, ref_ids)
         source += " and its GEOM tables (elements)" if elements else ""

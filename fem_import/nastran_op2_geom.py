@@ -1,4 +1,4 @@
-"""Elements of an OP2 file's GEOM2 and GEOM4 tables: the connectivity of a run whose input deck is not at hand.
+"""Grids and elements of an OP2 file's GEOM tables: the geometry of a run whose input deck is not at hand.
 
 ``PARAM,POST,-1`` writes the model's tables to the OP2 (``GEOM1S``, ``GEOM2S``, ``GEOM4S``...). A record of a GEOM
 table starts with three key words naming the entry type (MSC Nastran DMAP Programmer's Guide, GEOM2 and GEOM4),
@@ -14,6 +14,11 @@ grid table; a record that no layout fits is left out with a WARNING naming its c
 mesh meaning here (scalar points, plot elements, MPCs) at INFO. Checked on NX Nastran 9.1 and MSC Nastran 2020
 files (pyYeti's tests): the bars of a 8221-bar model and the rigid elements RBE2 and RBE3 are the input deck's,
 and a 32-bit and a 64-bit file of one model give the same CBEAM, CBUSH and CONM2 elements.
+
+The grids of ``GEOM1`` (GRID: ``ID CP X1 X2 X3 CD PS SEID``; CORD2R/C/S: ``CID`` type, ``RID`` and the points A,
+B, C) are the input's, in their ``CP`` systems: they are resolved as a deck's (:func:`fem_import.nastran_coords
+.resolve`) when the file has no grid table (``BGPDT``), which holds them in basic. On the files at hand the two
+agree to single precision, displacement systems included.
 """
 
 from __future__ import annotations
@@ -28,12 +33,14 @@ from .errors import FEReadError
 from .modes import Element
 from .nastran_bulk import element_from_fields
 
-__all__ = ["GEOM_TABLES", "FIXED_LAYOUTS", "op2_elements"]
+__all__ = ["GEOM_TABLES", "FIXED_LAYOUTS", "op2_elements", "op2_grids"]
 
 log = logging.getLogger("fem_import")
 
 #: The data blocks read (the S suffix: the superelement-sorted tables PARAM,POST,-1 writes).
-GEOM_TABLES = ("GEOM2S", "GEOM2", "GEOM4S", "GEOM4")
+GEOM_TABLES = ("GEOM1S", "GEOM1", "GEOM2S", "GEOM2", "GEOM4S", "GEOM4")
+_GRID = (4501, 45, 1)
+_CORD2 = {(2101, 21, 8): "R", (2001, 20, 9): "C", (2201, 22, 10): "S"}
 _END = (65535, 65535)  # key of a table's last record (its third word varies)
 
 
@@ -178,6 +185,8 @@ def op2_elements(path: str, records: list[tuple[str, bytes]], endian: str, word:
     unread: Counter = Counter()
     unfit: list[str] = []
     for table, raw in records:
+        if table.startswith("GEOM1"):
+            continue
         ints = np.frombuffer(raw, dtype=f"{endian}i{word}")
         floats = np.frombuffer(raw, dtype=f"{endian}f{word}")
         if ints.size < 3:
@@ -235,3 +244,61 @@ def op2_elements(path: str, records: list[tuple[str, bytes]], endian: str, word:
     log.info("%s: %d elements read from the OP2's GEOM tables (%s)", path, len(out),
              ", ".join(f"{k} x{v}" for k, v in sorted(Counter(c for c, _, _ in entries).items())))
     return tuple(out)
+
+
+def op2_grids(path: str, records: list[tuple[str, bytes]], endian: str, word: int, ids):
+    """``(xyz, frames)`` in basic of the grids ``ids`` from the GEOM1 records, or None if those lack some grid.
+
+    Raises
+    ------
+    FEReadError
+        A coordinate system that no CORD2 record defines, a cycle or a degenerate system
+        (:func:`fem_import.nastran_coords.resolve`); non-finite coordinates.
+    """
+    from .nastran_coords import resolve
+
+    grids: dict[int, tuple] = {}
+    cds: dict[int, int] = {}
+    cord2: dict[int, tuple] = {}
+    for table, raw in records:
+        if not table.startswith("GEOM1"):
+            continue
+        ints = np.frombuffer(raw, dtype=f"{endian}i{word}")
+        floats = np.frombuffer(raw, dtype=f"{endian}f{word}").astype(float)
+        if ints.size < 3:
+            continue
+        key = tuple(int(v) for v in ints[:3])
+        body_i, body_f = ints[3:], floats[3:]
+        if key == _GRID and body_i.size % 8 == 0:
+            for w, f in zip(body_i.reshape(-1, 8), body_f.reshape(-1, 8)):
+                grids[int(w[0])] = (int(w[1]), tuple(f[2:5].tolist()), table)
+                if w[5]:
+                    cds[int(w[0])] = int(w[5])
+        elif key in _CORD2 and body_i.size % 13 == 0:
+            for w, f in zip(body_i.reshape(-1, 13), body_f.reshape(-1, 13)):
+                cord2[int(w[0])] = (_CORD2[key], int(w[3]), f[4:7].copy(), f[7:10].copy(), f[10:13].copy(), table)
+    wanted = [int(g) for g in np.asarray(ids).tolist()]
+    absent = [g for g in wanted if g not in grids]
+    if absent:
+        if grids:
+            log.warning("%s: the GEOM1 table lacks %d grid(s) of the eigenvectors (first %s): its grids are not used",
+                        path, len(absent), absent[:5])
+        return None
+    bad = [g for g in wanted if not np.all(np.isfinite(grids[g][1]))]
+    if bad:
+        raise FEReadError(path, f"grid {bad[0]} has non-finite coordinates {list(grids[bad[0]][1])} in the GEOM1 "
+                                f"table: the file is damaged")
+    systems, positions = resolve(path, cord2, {}, grids)
+    xyz = np.array([positions[g] for g in wanted], float)
+    frames = np.repeat(np.eye(3)[None], len(wanted), axis=0)
+    for k, g in enumerate(wanted):
+        cd = cds.get(g)
+        if cd is None:
+            continue
+        if cd not in systems:
+            raise FEReadError(path, f"GRID {g}: its displacement system CD = {cd} is defined by no CORD2 record of "
+                                    f"the GEOM1 table", dataset="GEOM1")
+        frames[k] = systems[cd].frame_at(xyz[k])
+    log.info("%s: %d grid positions read from the GEOM1 table (%d coordinate system(s))", path, len(wanted),
+             len(cord2))
+    return xyz, frames

@@ -496,3 +496,22 @@ def test_a_damaged_eigenvalue_is_refused(tmp_path):
     modes[7] = (modes[7][0], float("nan"), modes[7][2], modes[7][3])
     with pytest.raises(FEReadError, match="mode 8 has the frequency nan"):
         fem_import.read(write_op2(tmp_path / "nan.op2", modes, lama=False))
+
+
+@pytest.mark.parametrize("rel", ["nas2cam_extseout/cant_beam.op2", "nas2cam_extseout/full.op2",
+                                 "nas2cam_csuper/assemble.op2"])
+def test_geom1_grids_are_the_grid_tables(rel, tmp_path, monkeypatch):
+    """GEOM1 holds the input's GRIDs and CORD2s, in their CP systems; resolved, they are BGPDT's basic positions and
+    CSTM's displacement directions (assemble: three grids displaced in a CORD2R). A file without the grid table
+    (PARAM,POST,-2 style) reads the same modes on them."""
+    import fem_import.nastran_op2 as nastran_op2
+
+    shutil.copy(yeti_file(rel), tmp_path / "alone.op2")
+    with_table = fem_import.read(tmp_path / "alone.op2")
+    monkeypatch.setattr(nastran_op2, "_grid_geometry", lambda path, post, ids: None)
+    without = fem_import.read(tmp_path / "alone.op2")
+    assert "GEOM1 table" in without.history[-1] and "grid table" in with_table.history[-1]
+    np.testing.assert_array_equal(without.node_ids, with_table.node_ids)
+    np.testing.assert_allclose(without.xyz, with_table.xyz, rtol=0, atol=1e-6 * np.abs(with_table.xyz).max())
+    np.testing.assert_allclose(without.shapes, with_table.shapes, rtol=0, atol=1e-6 * np.abs(with_table.shapes).max())
+    assert without.elements == with_table.elements
