@@ -515,3 +515,14 @@ def test_geom1_grids_are_the_grid_tables(rel, tmp_path, monkeypatch):
     np.testing.assert_allclose(without.xyz, with_table.xyz, rtol=0, atol=1e-6 * np.abs(with_table.xyz).max())
     np.testing.assert_allclose(without.shapes, with_table.shapes, rtol=0, atol=1e-6 * np.abs(with_table.shapes).max())
     assert without.elements == with_table.elements
+
+
+def test_a_2007_file_without_a_grid_table_has_its_geom1_grids():
+    """NX's 2007 run of the inboard model has no grid table pyYeti reads; its GEOM1 grids are where the later run's
+    grid table puts the same grids."""
+    old = fem_import.read(yeti_file("nas2cam_extseout/inboard_v2007.op2"))
+    new = fem_import.read(yeti_file("nas2cam_extseout/inboard.op2"))
+    assert "GEOM1 table" in old.history[-1] and "grid table" in new.history[-1]
+    np.testing.assert_array_equal(old.node_ids, new.node_ids)
+    np.testing.assert_allclose(old.xyz, new.xyz, rtol=1e-7)
+    np.testing.assert_allclose(old.freqs_hz, new.freqs_hz, rtol=1e-5)
