@@ -571,6 +571,8 @@ CARD_DESCRIPTORS = {
     "CELAS1": (136, 137, 138, 139), "CELAS2": (136, 137, 138, 139), "CBUSH": (136, 138), "RBAR": (121,),
     "RBE2": (122,), "RBE3": (181,),
 }
+# coordinate system cards not built (general curvilinear, moving rectangular): a grid in one is refused by name
+_UNREAD_SYSTEMS = ("CORD3G", "CORD3R")
 # rigid elements: Nastran's GEOM4 table, an id space apart from the elements
 _RIGID = {"RBAR", "RBE2", "RBE3"}
 _RIGID_DESCRIPTORS = {d for card in _RIGID for d in CARD_DESCRIPTORS[card]}
@@ -707,6 +709,7 @@ def bulk_geometry(path: str, lines: list[str], start: int = 0, *, where=None) ->
     raw_elements: list[tuple[int, int, tuple[int, ...], int, str, int]] = []
     includes: list[str] = []
     blank_cd: list[int] = []  # grids whose CD field is blank: GRDSET's CD, else basic
+    unread_systems: dict[int, tuple[str, int]] = {}  # cid -> (card, line) of systems this reader does not build
     grdset: tuple[int, int, int] | None = None
     skipped: dict[str, int] = {}
     orphans: list[int] = []
@@ -748,6 +751,12 @@ def bulk_geometry(path: str, lines: list[str], start: int = 0, *, where=None) ->
                                   line=line_no)
             grdset = _grdset(path, fields, line_no)
             continue
+        if name in _UNREAD_SYSTEMS:
+            cid = _Card(path, name, fields, line_no).integer(0, "coordinate system id", required=False)
+            if cid:
+                unread_systems[cid] = (name, line_no)
+            skipped[name] = skipped.get(name, 0) + 1
+            continue
         if name in ("CORD2R", "CORD2C", "CORD2S", "CORD1R", "CORD1C", "CORD1S"):
             for cid, spec in ([_cord2(path, name, fields, line_no)] if name.startswith("CORD2")
                               else _cord1(path, name, fields, line_no)):
@@ -783,6 +792,13 @@ def bulk_geometry(path: str, lines: list[str], start: int = 0, *, where=None) ->
     if grdset and (cp_default or cd_default):
         log.info("%s: GRDSET (line %s) gives the grids with a blank field CP = %d, CD = %d", path, grdset[2],
                  cp_default, cd_default)
+    for gid in ids:
+        for what, cid in (("CP", grids[gid][0]), ("CD", cds.get(gid))):
+            if cid in unread_systems:
+                card, where_cs = unread_systems[cid]
+                raise FEReadError(path, f"GRID {gid}: its {what} system {cid} is a {card} (line {where_cs}), a "
+                                  f"system this reader does not build (CORD1R/C/S and CORD2R/C/S are read)",
+                                  line=seen[gid])
     elements = _check_elements(path, raw_elements, seen, bool(includes))
     try:
         systems, positions = resolve(path, cord2, cord1, grids)

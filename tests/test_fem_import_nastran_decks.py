@@ -301,3 +301,11 @@ def test_grdset_gives_the_blank_cp_and_cd_of_every_grid(tmp_path):
     np.testing.assert_allclose(b.xyz, [[2.0, 0.0, 0.0], [1.0, 1.0, 0.5], [1.0, 0.0, 0.0]], atol=1e-15)
     with pytest.raises(FEReadError, match=r"GRDSET is given twice \(lines 2 and 3\)"):
         read_bulk_geometry(_deck(tmp_path, "GRDSET,,2\nGRDSET,,,,,,2\n" + explicit))
+
+
+def test_a_grid_in_a_general_curvilinear_system_is_refused_by_name(tmp_path):
+    text = "CORD3G,4,POLYNOMIAL,,1,2,3\nGRID,1,4,1.,0.,0.\nGRID,2,,0.,0.,0.,4\n"
+    with pytest.raises(FEReadError, match=r"line 3: GRID 1: its CP system 4 is a CORD3G \(line 2\)"):
+        read_bulk_geometry(_deck(tmp_path, text))
+    with pytest.raises(FEReadError, match=r"line 4: GRID 2: its CD system 4 is a CORD3G \(line 2\)"):
+        read_bulk_geometry(_deck(tmp_path, text.replace("GRID,1,4,", "GRID,1,,")))
