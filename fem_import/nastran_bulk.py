@@ -580,10 +580,12 @@ _RIGID_DESCRIPTORS = {d for card in _RIGID for d in CARD_DESCRIPTORS[card]}
 _SCALAR_OK = {"CELAS1", "CELAS2"}
 
 
-def element_from_fields(path: str, name: str, fields: list[str], line: int) -> tuple[int, int, tuple[int, ...], int]:
+def element_from_fields(path: str, name: str, fields: list[str],
+                        line: int | None) -> tuple[int, int, tuple[int, ...], int]:
     """``(element id, FE descriptor, node ids, property id)`` of an element entry ``name`` (a key of
     :data:`CARD_DESCRIPTORS`) from its fields after the name, as text in the card's field order (blank: absent).
-    Shared with the readers of other Nastran files that hold the same entries (:mod:`fem_import.nastran_h5`)."""
+    Shared with the readers of other Nastran files that hold the same entries (:mod:`fem_import.nastran_h5`,
+    :mod:`fem_import.nastran_op2_geom`); ``line`` None for a file without lines."""
     card = _Card(path, name, fields, line)
     if name in _LINEAR_ONLY:
         card = _Card(path, name, fields[:2 + _LINEAR_ONLY[name]], line)

@@ -220,7 +220,7 @@ def op2_elements(path: str, records: list[tuple[str, bytes]], endian: str, word:
     rigid: dict[int, Element] = {}
     for card, fields, table in entries:
         try:
-            eid, desc, nodes, pid = element_from_fields(path, card, fields, 0)
+            eid, desc, nodes, pid = element_from_fields(path, card, fields, None)
         except FEReadError as exc:
             log.warning("%s: %s entry of %s left out (%s)", path, card, table, exc)
             continue
